@@ -1,0 +1,40 @@
+# Two commands do everything on a fresh machine with Python >= 3.11 and make:
+#   make demo   - create .venv, install, run the main job on the built-in problems
+#   make test   - create .venv if needed, install, run the test suite
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed-stamp
+
+.PHONY: demo test test-slow lint format bench clean install
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/wingopt demo
+
+test: $(STAMP)
+	$(BIN)/python -m pytest
+
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -m slow
+
+lint: $(STAMP)
+	$(BIN)/ruff check wingopt tests examples benchmarks
+	$(BIN)/ruff format --check wingopt tests examples benchmarks
+
+format: $(STAMP)
+	$(BIN)/ruff format wingopt tests examples benchmarks
+	$(BIN)/ruff check --fix wingopt tests examples benchmarks
+
+bench: $(STAMP)
+	for f in benchmarks/bench_*.py; do $(BIN)/python $$f || exit 1; done
+
+clean:
+	rm -rf $(VENV) wingopt-demo .pytest_cache .ruff_cache *.egg-info

@@ -1,0 +1,5 @@
+import sys
+
+from wingopt.cli import main
+
+sys.exit(main())

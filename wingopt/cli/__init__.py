@@ -1,0 +1,93 @@
+"""The ``wingopt`` command.
+
+Every module in this package that defines ``register(subparsers)`` is a sub-command; its
+parser's ``func`` takes the parsed arguments and returns the exit code. Exit codes: 0 ok,
+2 bad input (:class:`~wingopt.errors.InputError`), 3 solver failure
+(:class:`~wingopt.errors.SolverError`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import pkgutil
+import sys
+
+from wingopt import __version__
+from wingopt.errors import InputError, SolverError
+
+__all__ = ["main", "build_parser", "EXIT_OK", "EXIT_INPUT", "EXIT_SOLVER"]
+
+EXIT_OK, EXIT_INPUT, EXIT_SOLVER = 0, 2, 3
+
+log = logging.getLogger("wingopt")
+
+
+def _common_options() -> argparse.ArgumentParser:
+    common = argparse.ArgumentParser(add_help=False)
+    g = common.add_argument_group("output verbosity")
+    g.add_argument("-q", "--quiet", action="store_true", help="only errors (logging level ERROR)")
+    g.add_argument("-v", "--verbose", action="count", default=0, help="more detail (-v INFO, -vv DEBUG)")
+    return common
+
+
+def _command_modules():
+    import wingopt.cli as pkg
+
+    mods = []
+    for info in pkgutil.iter_modules(pkg.__path__):
+        if info.name.startswith("_"):
+            continue
+        mod = importlib.import_module(f"wingopt.cli.{info.name}")
+        if hasattr(mod, "register"):
+            mods.append(mod)
+    return sorted(mods, key=lambda m: (getattr(m, "ORDER", 100), m.__name__))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="wingopt",
+        description="Control and estimation of flexible wings: plate morphing and membrane load identification.",
+        epilog="Run 'wingopt COMMAND --help' for a command's options and an example.",
+    )
+    parser.add_argument("--version", action="version", version=f"wingopt {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands")
+    common = _common_options()
+    for mod in _command_modules():
+        mod.register(sub, common)
+    return parser
+
+
+def _configure_logging(args) -> None:
+    level = logging.WARNING
+    if getattr(args, "quiet", False):
+        level = logging.ERROR
+    elif getattr(args, "verbose", 0) >= 2:
+        level = logging.DEBUG
+    elif getattr(args, "verbose", 0) == 1:
+        level = logging.INFO
+    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+    logging.getLogger("wingopt").setLevel(level)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``wingopt`` console script; returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return EXIT_INPUT
+    _configure_logging(args)
+    try:
+        return int(args.func(args) or EXIT_OK)
+    except InputError as exc:
+        print(f"wingopt {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_INPUT
+    except SolverError as exc:
+        print(f"wingopt {args.command}: solver failure: {exc}", file=sys.stderr)
+        return EXIT_SOLVER
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

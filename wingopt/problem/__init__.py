@@ -1,0 +1,74 @@
+"""Problem files: TOML descriptions of a wing, validated into frozen dataclasses.
+
+``load_problem("membrane")`` reads the built-in ``problems/membrane.toml``; any path works too.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from wingopt.errors import InputError, ProblemFileError
+from wingopt.problem.fields import Table
+from wingopt.problem.membrane import MembraneProblem
+
+__all__ = ["load_problem", "parse_problem", "parse_mesh", "builtin_problems", "PROBLEMS_DIR", "MembraneProblem"]
+
+PROBLEMS_DIR = Path(__file__).resolve().parents[2] / "problems"
+"""Directory of the built-in problem files (the repository's ``problems/``)."""
+
+# kind -> module with ``from_table(root: Table, name: str)``
+_KINDS = {"membrane": "wingopt.problem.membrane", "plate": "wingopt.problem.plate"}
+
+
+def builtin_problems() -> list[str]:
+    """Names of the built-in problem files."""
+    return sorted(p.stem for p in PROBLEMS_DIR.glob("*.toml"))
+
+
+def _resolve(problem: str | Path) -> Path:
+    path = Path(problem)
+    if path.suffix == ".toml" or path.exists():
+        if not path.is_file():
+            raise ProblemFileError(f"problem = {str(problem)!r}: no such file")
+        return path
+    builtin = PROBLEMS_DIR / f"{problem}.toml"
+    if builtin.is_file():
+        return builtin
+    names = ", ".join(builtin_problems()) or "none found"
+    raise ProblemFileError(f"problem = {str(problem)!r}: expected a .toml file or a built-in name ({names})")
+
+
+def parse_problem(data: dict[str, Any], source: str = "<memory>", name: str = "problem"):
+    """Validate a parsed TOML document into a problem dataclass."""
+    root = Table(data, source)
+    kind = root.string("kind", choices=tuple(_KINDS))
+    module = importlib.import_module(_KINDS[kind])
+    return module.from_table(root, name)
+
+
+def load_problem(problem: str | Path):
+    """Read and validate a problem file (path or built-in name)."""
+    path = _resolve(problem)
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise ProblemFileError(f"{path}: not valid TOML: {exc}") from None
+    except OSError as exc:
+        raise ProblemFileError(f"{path}: cannot read: {exc.strerror}") from None
+    return parse_problem(data, str(path), path.stem)
+
+
+def parse_mesh(text: str) -> tuple[int, int]:
+    """``"25x13"`` -> ``(25, 13)`` nodes in x and y."""
+    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", str(text))
+    if not m:
+        raise InputError(f"mesh = {text!r}: expected NXxNY, nodes in x and y, e.g. 25x13")
+    nx, ny = int(m.group(1)), int(m.group(2))
+    if nx < 4 or ny < 4:
+        raise InputError(f"mesh = {text!r}: expected at least 4 nodes (3 elements) per direction")
+    return nx, ny

@@ -1,0 +1,148 @@
+"""The membrane-wing problem (``kind = "membrane"``): dataclasses and their TOML reader."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+from wingopt.problem.fields import Table
+
+__all__ = ["MembraneMaterial", "StretchSensorSpec", "IdentificationSettings", "MembraneProblem", "from_table"]
+
+
+@dataclass(frozen=True)
+class MembraneMaterial:
+    """Isotropic pre-strained membrane (Table 6.1)."""
+
+    density: float = 960.0
+    youngs_modulus: float = 1.3e6
+    poisson_ratio: float = 0.36
+    thickness: float = 1.4e-4
+    prestrain: float = 0.05
+    kelvin_voigt: float = 1.0e-4
+    viscous: float = 5.0
+
+    @property
+    def tension(self) -> float:
+        """Isotropic pre-tension ``T = E h (eps + nu eps) / (1 - nu^2)`` (eq. 4.36), N/m."""
+        e, nu = self.prestrain, self.poisson_ratio
+        return self.youngs_modulus * self.thickness / (1 - nu**2) * (e + nu * e)
+
+    @property
+    def areal_density(self) -> float:
+        """Mass per area ``rho h``, kg/m^2."""
+        return self.density * self.thickness
+
+
+@dataclass(frozen=True)
+class StretchSensorSpec:
+    """A stretch sensor: name, rectangle ``(x0, x1, y0, y1)`` and gain ``alpha``."""
+
+    name: str
+    rect: tuple[float, float, float, float]
+    gain: float = 1.0
+
+
+@dataclass(frozen=True)
+class IdentificationSettings:
+    """Sampling and prior for load identification.
+
+    ``initial_load`` is the uniform prior mean of the pressure (Pa); stretch sensors cannot see
+    the sign of the load, so its sign decides the sign of the estimate. ``noise_std`` is the
+    sensor noise standard deviation (one value, or one per sensor); ``None`` means: estimate it
+    from the data.
+    """
+
+    dt: float = 1.0e-3
+    initial_load: float = 200.0
+    noise_std: tuple[float, ...] | None = None
+
+
+@dataclass(frozen=True)
+class MembraneProblem:
+    """A rectangular membrane wing with stretch sensors, clamped (zero deflection) on all edges."""
+
+    width: float
+    height: float
+    material: MembraneMaterial
+    nodes: tuple[int, int]
+    sensors: tuple[StretchSensorSpec, ...]
+    identification: IdentificationSettings = IdentificationSettings()
+    name: str = "membrane"
+    source: str = "<memory>"
+
+    kind = "membrane"
+
+    def with_mesh(self, nodes: tuple[int, int]) -> MembraneProblem:
+        """The same problem on another mesh (nodes in x, y)."""
+        return dataclasses.replace(self, nodes=tuple(nodes))
+
+    def with_sensors(self, sensors) -> MembraneProblem:
+        return dataclasses.replace(self, sensors=tuple(sensors))
+
+    @property
+    def sensor_names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self.sensors)
+
+
+def from_table(root: Table, name: str) -> MembraneProblem:
+    """Build a :class:`MembraneProblem` from the validated top-level TOML table."""
+    geo = root.table("geometry")
+    width = geo.number("width", positive=True, unit="m")
+    height = geo.number("height", positive=True, unit="m")
+    geo.finish()
+
+    mat = root.table("material")
+    material = MembraneMaterial(
+        density=mat.number("density", positive=True, unit="kg/m^3"),
+        youngs_modulus=mat.number("youngs_modulus", positive=True, unit="Pa"),
+        poisson_ratio=mat.number("poisson_ratio", lo=-0.999, hi=0.5),
+        thickness=mat.number("thickness", positive=True, unit="m"),
+        prestrain=mat.number("prestrain", positive=True),
+        kelvin_voigt=mat.number("kelvin_voigt", 1.0e-4, nonnegative=True, unit="s"),
+        viscous=mat.number("viscous", 5.0, nonnegative=True, unit="Pa s/m"),
+    )
+    mat.finish()
+
+    mesh = root.table("mesh")
+    nodes = mesh.integers("nodes", 2, lo=4)
+    mesh.finish()
+
+    sensors = []
+    for t in root.tables("sensors"):
+        sensors.append(
+            StretchSensorSpec(
+                name=t.string("name"),
+                rect=t.rect("rect", width, height),
+                gain=t.number("gain", 1.0, positive=True),
+            )
+        )
+        t.finish()
+    names = [s.name for s in sensors]
+    dup = next((n for n in names if names.count(n) > 1), None)
+    if dup is not None:
+        raise root.error("sensors", dup, "unique sensor names")
+
+    ident = root.table("identification", {})
+    dt = ident.number("dt", 1.0e-3, positive=True, unit="s")
+    initial_load = ident.number("initial_load", 200.0, unit="Pa")
+    if initial_load == 0:
+        raise ident.error("initial_load", initial_load, "a non-zero pressure (its sign fixes the sign of the estimate)")
+    noise = None
+    if ident.has("noise_std"):
+        if isinstance(ident.peek("noise_std"), list):
+            noise = ident.numbers("noise_std", len(sensors), positive=True)
+        else:
+            noise = (ident.number("noise_std", positive=True),)
+    ident.finish()
+    root.finish()
+    return MembraneProblem(
+        width=width,
+        height=height,
+        material=material,
+        nodes=nodes,
+        sensors=tuple(sensors),
+        identification=IdentificationSettings(dt=dt, initial_load=initial_load, noise_std=noise),
+        name=name,
+        source=root.source,
+    )
