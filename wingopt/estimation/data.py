@@ -89,6 +89,8 @@ class IdentificationResult:
         Wall time of the estimation (s).
     info : dict
         Method-specific diagnostics (iterations, solver statuses, lambda rule, ...).
+    load_space : TensorSpace or None
+        Basis of the ``load`` coefficients; ``None`` means the model's deflection basis.
     """
 
     method: str
@@ -100,6 +102,7 @@ class IdentificationResult:
     regularization: float = float("nan")
     wall_s: float = 0.0
     info: dict[str, Any] = field(default_factory=dict)
+    load_space: Any = None
 
     @property
     def final_load(self) -> np.ndarray:

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from wingopt.fe.bspline import EdgeCondition, SplineBasis1D
 from wingopt.fe.space import Cells, TensorSpace
 
 __all__ = [
@@ -35,6 +36,7 @@ __all__ = [
     "LinearForm",
     "separable",
     "assemble",
+    "assemble_mixed",
     "assemble_vector",
     "integrate",
     "VALUE",
@@ -187,6 +189,16 @@ def assemble(
         if form.terms is None or not whole:
             raise ValueError("the Kronecker path needs a separable form over the whole domain")
         return _kron_assemble(space, form.terms)
+    return _restrict(_assemble_full(space, form, cells, data, order, chunk), space, space)
+
+
+def _restrict(full: sp.csr_matrix, row_space: TensorSpace, col_space: TensorSpace) -> sp.csr_matrix:
+    """``T_row^T full T_col``: from the full spline basis to the two modified bases."""
+    return (row_space.transform.T @ full @ col_space.transform).tocsr()
+
+
+def _assemble_full(space, form, cells, data, order, chunk) -> sp.csr_matrix:
+    """Cell-by-cell assembly on the full (unmodified) spline basis of ``space``'s mesh."""
     cells = space.cells() if cells is None else cells
     data = dict(data or {})
     rows, cols, vals = [], [], []
@@ -203,12 +215,54 @@ def assemble(
         rows.append(np.repeat(dofs, 16, axis=1).ravel())
         cols.append(np.tile(dofs, (1, 16)).ravel())
         vals.append(local.ravel())
-    full = sp.csr_matrix(
+    return sp.csr_matrix(
         (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
         shape=(space.n_full, space.n_full),
     )
-    T = space.transform
-    return (T.T @ full @ T).tocsr()
+
+
+def _same_mesh(a: TensorSpace, b: TensorSpace) -> bool:
+    return all(p.length == q.length and p.n_elements == q.n_elements for p, q in ((a.bx, b.bx), (a.by, b.by)))
+
+
+def assemble_mixed(
+    row_space: TensorSpace,
+    col_space: TensorSpace,
+    form: BilinearForm,
+    cells: Cells | None = None,
+    data: Mapping[str, Any] | None = None,
+    order: int = 4,
+    method: str = "auto",
+    chunk: int = 512,
+) -> sp.csr_matrix:
+    """Assemble the ``(row_space.n, col_space.n)`` matrix ``∫ form(phi_i, psi_j)`` of two spaces.
+
+    Both spaces must live on the same mesh: they are then the same full spline space with
+    different edge modifications, so the matrix is ``T_row^T A_full T_col`` with ``A_full``
+    assembled once on the full basis. Example: the coupling ``∫ phi_w psi_f`` between a
+    zero-edge deflection space and a free-edge load space.
+
+    Parameters are those of :func:`assemble`; ``u`` in the form runs over ``row_space`` and
+    ``v`` over ``col_space``.
+    """
+    if method not in ("auto", "kron", "cells"):
+        raise ValueError(f"method = {method!r}: expected 'auto', 'kron' or 'cells'")
+    if not _same_mesh(row_space, col_space):
+        raise ValueError("assemble_mixed: the two spaces must have the same extent and elements")
+    whole = cells is None and not data
+    if method == "kron" or (method == "auto" and whole and form.terms is not None):
+        if form.terms is None or not whole:
+            raise ValueError("the Kronecker path needs a separable form over the whole domain")
+        out = sp.csr_matrix((row_space.n, col_space.n))
+        free = EdgeCondition.FREE
+        fx = SplineBasis1D(row_space.bx.length, row_space.bx.n_elements, free, free)
+        fy = SplineBasis1D(row_space.by.length, row_space.by.n_elements, free, free)
+        for c, du, dv in form.terms:
+            gx = row_space.bx.transform.T @ fx.gram(du.ax, dv.ax) @ col_space.bx.transform
+            gy = row_space.by.transform.T @ fy.gram(du.ay, dv.ay) @ col_space.by.transform
+            out = out + c * sp.kron(gx, gy, format="csr")
+        return out.tocsr()
+    return _restrict(_assemble_full(row_space, form, cells, data, order, chunk), row_space, col_space)
 
 
 def assemble_vector(

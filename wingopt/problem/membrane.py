@@ -50,12 +50,15 @@ class IdentificationSettings:
     ``initial_load`` is the uniform prior mean of the pressure (Pa); stretch sensors cannot see
     the sign of the load, so its sign decides the sign of the estimate. ``noise_std`` is the
     sensor noise standard deviation (one value, or one per sensor); ``None`` means: estimate it
-    from the data.
+    from the data. ``initial_deflection`` is the peak (m) of the prior initial shape
+    ``16 xi (1 - xi) eta (1 - eta)`` (the protocol's 1 cm bubble); ``0`` means unknown. With it,
+    the estimators also fix the sign of loads without net lift (L2).
     """
 
     dt: float = 1.0e-3
     initial_load: float = 200.0
     noise_std: tuple[float, ...] | None = None
+    initial_deflection: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -128,6 +131,7 @@ def from_table(root: Table, name: str) -> MembraneProblem:
     initial_load = ident.number("initial_load", 200.0, unit="Pa")
     if initial_load == 0:
         raise ident.error("initial_load", initial_load, "a non-zero pressure (its sign fixes the sign of the estimate)")
+    initial_deflection = ident.number("initial_deflection", 0.0, unit="m")
     noise = None
     if ident.has("noise_std"):
         if isinstance(ident.peek("noise_std"), list):
@@ -142,7 +146,9 @@ def from_table(root: Table, name: str) -> MembraneProblem:
         material=material,
         nodes=nodes,
         sensors=tuple(sensors),
-        identification=IdentificationSettings(dt=dt, initial_load=initial_load, noise_std=noise),
+        identification=IdentificationSettings(
+            dt=dt, initial_load=initial_load, noise_std=noise, initial_deflection=initial_deflection
+        ),
         name=name,
         source=root.source,
     )

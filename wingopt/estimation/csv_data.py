@@ -1,0 +1,161 @@
+"""Reading and validating measured stretch-sensor series from CSV (spec §2, §7).
+
+Format: a header row with a ``t`` column (seconds) and one column per sensor, named as in the
+problem file (any order; other columns are ignored and reported); one row per sample; comma
+separated; lines starting with ``#`` are comments. Empty cells, ``nan`` or ``NA`` mark missing
+values: such rows are kept as missing samples (the estimators skip them, nothing is invented)
+and counted.
+
+Checks, each a one-line :class:`~wingopt.errors.DataFileError` (exit code 2 on the command line):
+empty file or no data rows, missing ``t`` or sensor columns, a non-numeric cell (with its line),
+a missing time, times not strictly increasing, irregular sampling (steps that are not whole
+multiples of the typical step; whole multiples are gaps and are filled with missing rows), and
+values that cannot be the dimensionless stretch ``s = alpha/(2A) ∫ |grad w|^2`` (a hint about
+units: percent or microstrain).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from wingopt.errors import DataFileError
+from wingopt.estimation.data import Measurements
+
+__all__ = ["CsvReport", "read_measurements", "MISSING_TOKENS", "MAX_STRETCH"]
+
+MISSING_TOKENS = frozenset({"", "nan", "na", "n/a", "null", "none", "-"})
+
+MAX_STRETCH = 0.5
+"""Largest plausible stretch output: ``s = 0.5`` means surface slopes of 45° on average over a
+sensor, far beyond a pre-tensioned membrane; larger values are almost surely other units."""
+
+_JITTER = 0.01  # relative deviation of a time step from a whole multiple of dt that is tolerated
+
+
+@dataclass
+class CsvReport:
+    """What the reader found: sizes, missing rows, filled gaps, ignored columns, sample period."""
+
+    path: str
+    rows: int
+    dt: float
+    missing_rows: int
+    gap_rows_filled: int
+    ignored_columns: list[str] = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        return {
+            "file": self.path,
+            "rows": self.rows,
+            "dt_s": self.dt,
+            "missing_rows": self.missing_rows,
+            "gap_rows_filled": self.gap_rows_filled,
+            "ignored_columns": self.ignored_columns,
+        }
+
+
+def _cell(text: str, line: int, column: str, path: str) -> float:
+    s = text.strip()
+    if s.lower() in MISSING_TOKENS:
+        return math.nan
+    try:
+        v = float(s)
+    except ValueError:
+        raise DataFileError(f"{path}:{line}: {column} = {text!r}: expected a number (or empty for missing)") from None
+    if math.isinf(v):
+        raise DataFileError(f"{path}:{line}: {column} = {text!r}: expected a finite number")
+    return v
+
+
+def read_measurements(path: str | Path, sensor_names: tuple[str, ...] | list[str]) -> tuple[Measurements, CsvReport]:
+    """Read ``path`` into :class:`Measurements` for the given sensor names (problem order).
+
+    Returns the measurements (NaN where missing, on a uniform time grid) and a :class:`CsvReport`.
+    """
+    p = Path(path)
+    name = str(path)
+    if not p.is_file():
+        raise DataFileError(f"data = {name!r}: no such file")
+    try:
+        text = p.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        raise DataFileError(f"{name}: not a text (UTF-8) CSV file") from None
+    except OSError as exc:
+        raise DataFileError(f"{name}: cannot read: {exc.strerror}") from None
+    lines = [(i + 1, ln) for i, ln in enumerate(text.splitlines()) if ln.strip() and not ln.lstrip().startswith("#")]
+    if not lines:
+        raise DataFileError(f"{name}: empty file: expected a header 't,{','.join(sensor_names)}' and data rows")
+    reader = csv.reader([ln for _, ln in lines])
+    rows = list(reader)
+    header = [h.strip() for h in rows[0]]
+    if len(header) == 1 and (";" in header[0] or "\t" in header[0]):
+        raise DataFileError(f"{name}:{lines[0][0]}: header {header[0]!r}: expected comma-separated columns")
+    if "t" not in header:
+        raise DataFileError(f"{name}:{lines[0][0]}: header {header}: expected a 't' column (time in s)")
+    missing = [s for s in sensor_names if s not in header]
+    if missing:
+        raise DataFileError(
+            f"{name}:{lines[0][0]}: missing sensor column(s) {', '.join(missing)}: expected one column per sensor "
+            f"of the problem ({', '.join(sensor_names)})"
+        )
+    dup = next((h for h in header if header.count(h) > 1), None)
+    if dup is not None:
+        raise DataFileError(f"{name}:{lines[0][0]}: column {dup!r} appears twice")
+    if len(rows) < 2:
+        raise DataFileError(f"{name}: header only, no data rows")
+    it = header.index("t")
+    cols = [header.index(s) for s in sensor_names]
+    ignored = [h for h in header if h != "t" and h not in sensor_names]
+    t = np.empty(len(rows) - 1)
+    vals = np.empty((len(rows) - 1, len(cols)))
+    for r, row in enumerate(rows[1:]):
+        line = lines[r + 1][0]
+        if len(row) != len(header):
+            raise DataFileError(f"{name}:{line}: {len(row)} values for {len(header)} columns")
+        t[r] = _cell(row[it], line, "t", name)
+        if math.isnan(t[r]):
+            raise DataFileError(f"{name}:{line}: t is missing: every row needs a time")
+        for j, c in enumerate(cols):
+            vals[r, j] = _cell(row[c], line, sensor_names[j], name)
+    if t.size < 2:
+        raise DataFileError(f"{name}: only {t.size} data row: expected a time series")
+    steps = np.diff(t)
+    bad = np.flatnonzero(steps <= 0)
+    if bad.size:
+        k = bad[0] + 1
+        raise DataFileError(
+            f"{name}:{lines[k + 1][0]}: t = {t[k]!r} after {t[k - 1]!r}: expected strictly increasing times"
+        )
+    dt = float(np.median(steps))
+    ratio = steps / dt
+    whole = np.rint(ratio)
+    if np.any(np.abs(ratio - whole) > _JITTER):
+        k = int(np.argmax(np.abs(ratio - whole))) + 1
+        raise DataFileError(
+            f"{name}:{lines[k + 1][0]}: irregular sampling (step {steps[k - 1]:.6g} s, typical {dt:.6g} s): "
+            "resample the data to a uniform time step"
+        )
+    # Whole-multiple steps are gaps: fill them with missing rows so the time grid is uniform.
+    index = np.concatenate([[0], np.cumsum(whole.astype(int))])
+    n = int(index[-1]) + 1
+    grid_vals = np.full((n, len(cols)), np.nan)
+    grid_vals[index] = vals
+    grid_t = t[0] + dt * np.arange(n)
+    finite = grid_vals[np.isfinite(grid_vals)]
+    if finite.size == 0:
+        raise DataFileError(f"{name}: every sensor value is missing")
+    peak = float(np.max(np.abs(finite)))
+    if peak > MAX_STRETCH:
+        raise DataFileError(
+            f"{name}: sensor values up to {peak:.4g}: expected the dimensionless stretch s = alpha/(2A) ∫|grad w|^2 "
+            "(typically 1e-4..1e-1); are the values in percent or microstrain?"
+        )
+    missing_rows = int(np.count_nonzero(np.isnan(vals).any(axis=1)))
+    meas = Measurements(t=grid_t, values=grid_vals, sensor_names=tuple(sensor_names), source=name)
+    report = CsvReport(name, int(t.size), dt, missing_rows, int(n - t.size), ignored)
+    return meas, report

@@ -1,0 +1,679 @@
+"""Moving-horizon Tikhonov estimation of the membrane load (spec §4).
+
+Over a window of the last ``N`` samples the unknowns are the modal state at the window start and
+the load (constant over the window, or ``B`` piecewise-constant blocks with a random-walk penalty
+between them). The cost is::
+
+    arrival cost  +  sum_k |y_k - h(x_k)|^2_{R^-1}  +  lambda sum_b f_b^T Lam f_b  (+ random walk)
+
+with the exact discrete dynamics (per-mode zero-order hold, :mod:`wingopt.estimation.mhe_model`).
+The arrival cost is a Gaussian in information form that summarises all data before the window:
+after each window the first ``stride`` samples are absorbed (linearised at the window's optimum),
+the state is propagated with a small process noise, and, for a random-walk load, the dropped
+block is marginalised. For a constant load, a linear model and no process noise this makes the
+final window's answer equal to the batch Tikhonov estimate over the whole record.
+
+Step-able use (PyLops style)::
+
+    mhe = MovingHorizonEstimator(model, MHESettings(window=200, stride=50))
+    mhe.setup(measurements)           # noise level, lambda, start-up (scan, coarse-to-fine, sign)
+    while mhe.step():                 # one window per step
+        print(mhe.current_lift)
+    result = mhe.result()
+
+or one shot: ``mhe_identify(model, measurements, settings)``.
+
+**Sign.** Stretch sensors are sign-blind: a load and its negative give the same data (with the
+initial state negated too). The sign is fixed by the prior, explicitly: the problem's
+``initial_load`` (the estimate's load must correlate positively with it) and, when known, the
+prior initial deflection (``initial_deflection``, the protocol's bubble). See
+:mod:`wingopt.estimation.mhe_start`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.linalg as sla
+
+from wingopt.errors import InputError
+from wingopt.estimation.data import IdentificationResult, Measurements
+from wingopt.estimation.load_space import LoadSpaceKind, build_load_space
+from wingopt.estimation.mhe_model import ReducedModel
+from wingopt.estimation.mhe_solvers import BACKENDS, NumpySolver, WindowSolution, make_solver
+from wingopt.estimation.mhe_start import SignPrior, start_window
+from wingopt.estimation.mhe_window import LinearBounds, WindowProblem
+from wingopt.estimation.regularization import LambdaPoint, LambdaRule, choose_lambda, estimate_noise_std
+from wingopt.membrane import MembraneModel, bubble
+
+__all__ = ["MHESettings", "MovingHorizonEstimator", "mhe_identify", "LOAD_MODELS"]
+
+log = logging.getLogger(__name__)
+
+LOAD_MODELS = ("constant", "random_walk")
+
+
+@dataclass(frozen=True)
+class MHESettings:
+    """Configuration of the moving-horizon estimator.
+
+    Parameters
+    ----------
+    window : int
+        Samples per window ``N``.
+    stride : int
+        Samples the window advances per step (``1 <= stride <= window``); the estimator solves
+        ``(samples - window) / stride + 1`` windows.
+    load_model : {"constant", "random_walk"}
+        ``constant``: one load per window, constant in time (quasi-static loads, the protocol).
+        ``random_walk``: the window holds ``window // stride`` load blocks of ``stride`` samples,
+        with the penalty ``lambda_rw |f_{b+1} - f_b|^2_Lam`` between blocks and across windows
+        (``window`` must be a multiple of ``stride``).
+    temporal_smoothness : float
+        Random walk only: time (s) over which a load change as large as the load itself costs as
+        much as its roughness; ``lambda_rw = lambda * temporal_smoothness / (stride * dt)``.
+    modes : int or None
+        Membrane modes kept (``None``: all). 60 keeps the sensor outputs of L1–L3 within 0.1 %.
+    load_space : {"fixed", "free"}
+        Load basis (:mod:`wingopt.estimation.load_space`).
+    backend : {"numpy", "cvxpy", "ipopt"}
+        Window solver (:mod:`wingopt.estimation.mhe_solvers`).
+    qp_solver : {"clarabel", "osqp"}
+        QP solver of the cvxpy backend.
+    regularization : float or None
+        Fixed lambda; ``None``: choose it from the data with ``lambda_rule``.
+    lambda_rule : {"robust", "discrepancy", "gcv"}
+    lambda_grid : tuple of float
+        Relative lambdas tried by the rule (multiples of the problem's natural scale).
+    state_prior : float
+        Prior standard deviation of the initial modal state, relative to the data's amplitude:
+        ``state_prior * A / omega_j`` for displacements and ``state_prior * A`` for velocities
+        (a weak prior scaled like ``1/omega``: equal energy per mode).
+    state_noise : float
+        Relative process noise on the modal state per window step (model error; also keeps the
+        propagated arrival information finite for fast-decaying modes).
+    pressure_bounds : (float, float) or None
+        ``(min, max)`` pressure in Pa at the points of ``bound_grid`` (cvxpy and ipopt backends).
+    bound_grid : (int, int)
+        Points in x and y (edges included) where the bounds are imposed.
+    max_iterations, tolerance : int, float
+        Window solver limits; ``tolerance`` in chi-square units.
+    start_shapes, start_state_modes, start_amplitudes : int
+        Size of the start-up scan and coarse problem (:func:`~wingopt.estimation.mhe_start.start_window`).
+    """
+
+    window: int = 200
+    stride: int = 50
+    load_model: str = "constant"
+    temporal_smoothness: float = 0.05
+    modes: int | None = 60
+    load_space: str = "fixed"
+    backend: str = "numpy"
+    qp_solver: str = "clarabel"
+    regularization: float | None = None
+    lambda_rule: str = "robust"
+    lambda_grid: tuple[float, ...] = tuple(10.0 ** np.arange(-6.0, 0.01, 0.5))
+    state_prior: float = 1.0
+    state_noise: float = 1e-6
+    pressure_bounds: tuple[float, float] | None = None
+    bound_grid: tuple[int, int] = (15, 8)
+    max_iterations: int = 100
+    tolerance: float = 1e-3
+    start_shapes: int = 3
+    start_state_modes: int = 4
+    start_amplitudes: int = 16
+
+    def __post_init__(self) -> None:
+        def bad(name, expected):
+            raise InputError(f"mhe {name} = {getattr(self, name)!r}: expected {expected}")
+
+        if int(self.window) != self.window or self.window < 2:
+            bad("window", "an integer >= 2 (samples)")
+        if int(self.stride) != self.stride or not 1 <= self.stride <= self.window:
+            bad("stride", f"an integer in 1..window ({self.window})")
+        if self.load_model not in LOAD_MODELS:
+            bad("load_model", " or ".join(LOAD_MODELS))
+        if self.load_model == "random_walk" and self.window % self.stride:
+            bad("stride", f"a divisor of the window ({self.window}) for the random-walk load model")
+        if not self.temporal_smoothness > 0:
+            bad("temporal_smoothness", "a positive time (s)")
+        if self.modes is not None and (int(self.modes) != self.modes or self.modes < 1):
+            bad("modes", "a positive integer or None (all)")
+        try:
+            LoadSpaceKind(self.load_space)
+        except ValueError:
+            bad("load_space", "'fixed' or 'free'")
+        if self.backend not in BACKENDS:
+            bad("backend", " | ".join(BACKENDS))
+        if self.qp_solver not in ("clarabel", "osqp"):
+            bad("qp_solver", "clarabel or osqp")
+        if self.regularization is not None and not (np.isfinite(self.regularization) and self.regularization > 0):
+            bad("regularization", "a positive number or None (from the data)")
+        try:
+            LambdaRule(self.lambda_rule)
+        except ValueError:
+            bad("lambda_rule", "robust, discrepancy or gcv")
+        if len(self.lambda_grid) < 3 or min(self.lambda_grid) <= 0:
+            bad("lambda_grid", "at least 3 positive numbers")
+        if not self.state_prior > 0:
+            bad("state_prior", "a positive number")
+        if not self.state_noise > 0:
+            bad("state_noise", "a positive number")
+        if self.pressure_bounds is not None:
+            lo, hi = self.pressure_bounds
+            if not lo < hi:
+                bad("pressure_bounds", "(min, max) with min < max (Pa)")
+            if self.backend == "numpy":
+                raise InputError("mhe pressure_bounds need backend cvxpy or ipopt (numpy has no bounds)")
+
+    def replace(self, **changes: Any) -> MHESettings:
+        return dataclasses.replace(self, **changes)
+
+    @property
+    def blocks(self) -> int:
+        return self.window // self.stride if self.load_model == "random_walk" else 1
+
+
+def _marginalize(L: np.ndarray, eta: np.ndarray, keep: np.ndarray, drop: np.ndarray):
+    """Gaussian marginalisation in information form (Schur complement)."""
+    Lkk = L[np.ix_(keep, keep)]
+    Lkd = L[np.ix_(keep, drop)]
+    Ldd = L[np.ix_(drop, drop)]
+    c = sla.cho_factor(0.5 * (Ldd + Ldd.T))
+    X = sla.cho_solve(c, np.column_stack([Lkd.T, eta[drop]]))
+    out = Lkk - Lkd @ X[:, :-1]
+    return 0.5 * (out + out.T), eta[keep] - Lkd @ X[:, -1]
+
+
+class MovingHorizonEstimator:
+    """Step-able moving-horizon load estimator on a :class:`~wingopt.membrane.MembraneModel`.
+
+    Parameters
+    ----------
+    model : MembraneModel
+        The estimator's model (its mesh is the estimation mesh).
+    settings : MHESettings
+    """
+
+    def __init__(self, model: MembraneModel, settings: MHESettings | None = None) -> None:
+        self.model = model
+        self.settings = settings or MHESettings()
+        s = self.settings
+        self.load_space = build_load_space(model, s.load_space)
+        self.reduced = ReducedModel.build(model, self.load_space, s.modes)
+        self.solver = make_solver(s.backend, s.qp_solver, max_iterations=s.max_iterations, tolerance=s.tolerance)
+        # The start-up's coarse problem is tiny and always solved with the fast dense solver.
+        self._coarse_solver = NumpySolver(max_iterations=200, tolerance=s.tolerance)
+        self._ready = False
+
+    # -- setup -------------------------------------------------------------------------------
+    def setup(
+        self,
+        measurements: Measurements,
+        noise_std: np.ndarray | float | None = None,
+        initial_load: float | None = None,
+        initial_deflection: float | None = None,
+    ) -> MovingHorizonEstimator:
+        """Prepare a run on ``measurements`` and solve the first window.
+
+        Parameters
+        ----------
+        measurements : Measurements
+            Uniformly sampled; NaN entries are missing samples (weight 0).
+        noise_std : float or array, optional
+            Sensor noise std; default: the measurements', else the problem's ``noise_std``, else
+            estimated from the data (:func:`~wingopt.estimation.regularization.estimate_noise_std`).
+        initial_load : float, optional
+            Sign prior (Pa); default: the problem's ``identification.initial_load``.
+        initial_deflection : float, optional
+            Peak (m) of the prior initial bubble; ``0``: unknown. Default: the problem's
+            ``identification.initial_deflection`` when it has one, else 0.
+        """
+        t0 = time.perf_counter()
+        s, red = self.settings, self.reduced
+        problem = self.model.problem
+        ident = problem.identification
+        meas = measurements
+        if tuple(meas.sensor_names) != tuple(problem.sensor_names):
+            raise InputError(
+                f"measurements: sensors {list(meas.sensor_names)} do not match the problem's "
+                f"{list(problem.sensor_names)}"
+            )
+        if meas.count < 2:
+            raise InputError("measurements: need at least 2 samples")
+        dt = float(np.median(np.diff(meas.t)))
+        if np.max(np.abs(np.diff(meas.t) - dt)) > 1e-6 * dt:
+            raise InputError("measurements: irregular sampling; resample to a uniform time step first")
+        if abs(dt - red.dt) > 1e-9 * red.dt:
+            log.info("data sampled at dt = %g s (problem: %g s): rebuilding the reduced model", dt, red.dt)
+            self.reduced = red = ReducedModel.build(self.model, self.load_space, s.modes, dt)
+        self.dt = dt
+        y = np.array(meas.values, dtype=float)
+        missing = ~np.isfinite(y)
+        self.missing_rows = int(np.count_nonzero(missing.any(axis=1)))
+        if missing.all():
+            raise InputError("measurements: every sample is missing")
+        # Noise level: given > measurements > problem file > estimated from the data.
+        sigma = noise_std
+        source = "argument"
+        if sigma is None and meas.noise_std is not None:
+            sigma, source = meas.noise_std, "measurements"
+        if sigma is None and ident.noise_std is not None:
+            sigma, source = ident.noise_std, "problem file"
+        if sigma is None:
+            sigma, source = estimate_noise_std(y), "estimated from the data"
+        sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (y.shape[1],)).copy()
+        if not np.all(np.isfinite(sigma) & (sigma > 0)):
+            raise InputError(f"noise_std = {sigma.tolist()}: expected positive values")
+        self.noise_std, self.noise_source = sigma, source
+        self.y = np.where(missing, 0.0, y)
+        self.w = np.where(missing, 0.0, 1.0 / sigma**2)
+        self.t = meas.t
+        K = y.shape[0]
+        self.K = K
+        m = red.m
+        # Scaling: modal amplitude A such that the data's largest output is O(1) for mode 1.
+        ymax = float(np.nanmax(np.abs(y)))
+        gain = np.max(np.stack([np.diag(C) for C in red.sensor_matrices]) / red.omega**2)
+        A = np.sqrt(max(ymax, 1e-300) / gain)
+        self.amplitude = A
+        self._Dx = np.concatenate([A / red.omega, A * np.ones(m)])
+        self._Du = A * red.omega
+        # Priors: initial modal state (weak, 1/omega) and the sign prior.
+        p0 = ident.initial_load if initial_load is None else float(initial_load)
+        if p0 == 0 or not np.isfinite(p0):
+            raise InputError(f"initial_load = {p0!r}: expected a non-zero pressure (its sign fixes the sign)")
+        peak = getattr(ident, "initial_deflection", 0.0) if initial_deflection is None else initial_deflection
+        self.initial_load, self.initial_deflection = p0, float(peak)
+        f_prior = self.load_space.project(lambda x, yy: np.full_like(x, p0))
+        x_prior = np.zeros(2 * m)
+        q_prior = None
+        if self.initial_deflection != 0:
+            z0 = self.model.project(bubble(problem.width, problem.height, self.initial_deflection))
+            q_prior = red.to_modal(z0)
+            x_prior[:m] = q_prior
+        self.sign_prior = SignPrior(f_prior, q_prior)
+        self.x_prior = x_prior
+        sx = s.state_prior * self._Dx
+        # Arrival cost in information form over (x, u_1), physical units: the state prior only.
+        Ia = np.zeros((3 * m, 3 * m))
+        Ia[: 2 * m, : 2 * m] = np.diag(1.0 / sx**2)
+        self._arrival = (Ia, np.concatenate([x_prior / sx**2, np.zeros(m)]))
+        self._lift_scale = abs(p0) * problem.width * problem.height
+        # Window geometry.
+        self.N = min(s.window, K)
+        blocks = s.blocks if self.N == s.window else 1
+        self.basis = red.window(self.N, blocks)
+        self.B = blocks
+        self.bounds_points = self._bound_rows() if s.pressure_bounds else None
+        # History (per sample): modal forces, modal displacement, lift std.
+        self._u = np.full((K, m), np.nan)
+        self._q = np.full((K, m), np.nan)
+        self._lift_std = np.full(K, np.nan)
+        self._windows: list[dict] = []
+        self.start = 0
+        # Lambda and the first window.
+        self.lambda_info: dict = {}
+        if s.regularization is not None:
+            self.lam = float(s.regularization)
+            sol, report = self._start(self.lam)
+        else:
+            sol, report = self._choose_lambda()
+        self.start_report = report
+        self._accept(sol, first=True)
+        self.setup_seconds = time.perf_counter() - t0
+        self._t_start = t0
+        self._ready = True
+        return self
+
+    def _bound_rows(self) -> np.ndarray:
+        """Rows mapping modal forces ``u`` to pressures at the bound points."""
+        nx, ny = self.settings.bound_grid
+        ls = self.load_space
+        X, Y = np.meshgrid(np.linspace(0, ls.space.width, nx), np.linspace(0, ls.space.height, ny))
+        E = ls.space.basis_matrix(X.ravel(), Y.ravel())
+        return np.asarray(E @ self.reduced.load_map)
+
+    @property
+    def dim(self) -> int:
+        return (2 + self.B) * self.reduced.m
+
+    @property
+    def scale(self) -> np.ndarray:
+        return np.concatenate([self._Dx] + [self._Du] * self.B)
+
+    def _window_problem(self, start: int, lam: float) -> WindowProblem:
+        """The window starting at sample ``start`` with the current arrival cost."""
+        red = self.reduced
+        m, B, N = red.m, self.B, self.N
+        dim = self.dim
+        H0 = np.zeros((dim, dim))
+        g0 = np.zeros(dim)
+        Ia, ea = self._arrival
+        k = Ia.shape[0]
+        H0[:k, :k] += Ia
+        g0[:k] += ea
+        R = red.roughness
+        for b in range(B):
+            sl = slice((2 + b) * m, (3 + b) * m)
+            H0[sl, sl] += lam * R
+        if B > 1:
+            lam_rw = self._lam_rw(lam)
+            for b in range(B - 1):
+                i, j = slice((2 + b) * m, (3 + b) * m), slice((3 + b) * m, (4 + b) * m)
+                H0[i, i] += lam_rw * R
+                H0[j, j] += lam_rw * R
+                H0[i, j] -= lam_rw * R
+                H0[j, i] -= lam_rw * R
+        bounds = None
+        if self.bounds_points is not None:
+            lo, hi = self.settings.pressure_bounds
+            rows = []
+            for b in range(B):
+                A = np.zeros((self.bounds_points.shape[0], dim))
+                A[:, (2 + b) * m : (3 + b) * m] = self.bounds_points
+                rows.append(A)
+            Ab = np.vstack(rows)
+            bounds = LinearBounds(Ab, np.full(Ab.shape[0], lo), np.full(Ab.shape[0], hi))
+        sl = slice(start, start + N)
+        return WindowProblem(red, self.basis, self.y[sl], self.w[sl], 0.5 * (H0 + H0.T), g0, 0.0, self.scale, bounds)
+
+    def _lam_rw(self, lam: float) -> float:
+        s = self.settings
+        return lam * s.temporal_smoothness / (s.stride * self.dt)
+
+    # -- start-up and lambda -----------------------------------------------------------------
+    def _start(self, lam: float):
+        problem = self._window_problem(0, lam)
+        s = self.settings
+        return start_window(
+            problem,
+            self.solver,
+            self._coarse_solver,
+            self.sign_prior,
+            self.x_prior,
+            self._lift_scale,
+            state_modes=s.start_state_modes,
+            shapes=s.start_shapes,
+            amplitudes=s.start_amplitudes,
+        )
+
+    def natural_lambda(self) -> float:
+        """Scale of lambda at which roughness and data information balance along the smoothest shape.
+
+        ``lambda_nat = (v^T H_data v) / (v^T S^-1 v)`` for the modal forces ``v`` of the smoothest
+        load shape, with ``H_data`` the data's Gauss–Newton matrix at the start-up estimate.
+        """
+        return self._lam_nat
+
+    def _choose_lambda(self):
+        """Lambda path on the first window (continuation from the start-up) and the data-only rule."""
+        s, red = self.settings, self.reduced
+        m = red.m
+        # Start-up at a moderate weight, measured in the problem's natural scale.
+        from wingopt.estimation.mhe_start import smooth_load_shapes
+
+        v = smooth_load_shapes(red, 1)[0]
+        grid = sorted(s.lambda_grid)
+        mid = float(np.sqrt(grid[0] * grid[-1]))
+
+        def natural(theta):
+            _, J = self._window_problem(0, 0.0).linearize(theta)
+            Ju = J[:, 2 * m : 3 * m] @ v
+            return float(Ju @ Ju) / float(v @ red.roughness @ v)
+
+        # A first guess of the scale from the prior state and a smooth load of the prior's size,
+        # the start-up there, then the scale at the start-up's answer (what the grid is built on).
+        lam_probe = natural(self._guess(v)) * mid
+        sol0, report = self._start(lam_probe)
+        lam_nat = natural(sol0.theta)
+        self._lam_nat = lam_nat
+        path: list[LambdaPoint] = []
+        sols: dict[float, tuple] = {}
+        lams = [lam_nat * g for g in grid]
+        # Continuation outwards from the probe.
+        i0 = int(np.argmin([abs(np.log(lam / lam_probe)) for lam in lams]))
+        order = list(range(i0, len(lams))) + list(range(i0 - 1, -1, -1))
+        prev = {}
+        for i in order:
+            lam = lams[i]
+            problem = self._window_problem(0, lam)
+            neighbour = prev.get(i - 1 if i > i0 else i + 1, sol0.theta)
+            sol = self.solver.solve(problem, neighbour if i != i0 else sol0.theta)
+            prev[i] = sol.theta
+            sols[lam] = (sol, problem)
+            path.append(self._path_point(problem, sol, lam))
+        lam, info = choose_lambda(path, s.lambda_rule)
+        # Re-solve at the chosen weight from the nearest grid solution.
+        near = min(sols, key=lambda x: abs(np.log(x / lam)))
+        problem = self._window_problem(0, lam)
+        sol = self.solver.solve(problem, sols[near][0].theta)
+        self.lam = lam
+        info["natural_scale"] = lam_nat
+        info["path"] = [dataclasses.asdict(p) for p in sorted(path, key=lambda p: p.lam)]
+        self.lambda_info = info
+        return sol, report
+
+    def _guess(self, v: np.ndarray) -> np.ndarray:
+        theta = np.zeros(self.dim)
+        theta[: 2 * self.reduced.m] = self.x_prior
+        for b in range(self.B):
+            theta[(2 + b) * self.reduced.m : (3 + b) * self.reduced.m] = v * self._lift_scale
+        return theta
+
+    @staticmethod
+    def _path_point(problem: WindowProblem, sol: WindowSolution, lam: float) -> LambdaPoint:
+        _, J = problem.linearize(sol.theta)
+        D = problem.scale
+        Hs = D[:, None] * sol.hessian * D[None, :]
+        Js = J * D[None, :]
+        c = sla.cho_factor(Hs)
+        dof = float(np.trace(sla.cho_solve(c, Js.T @ Js)))
+        return LambdaPoint(float(lam), problem.data_cost(sol.theta), dof, problem.n_data)
+
+    # -- stepping ----------------------------------------------------------------------------
+    def _accept(self, sol: WindowSolution, first: bool = False) -> None:
+        """Record a window's answer in the histories."""
+        red = self.reduced
+        m, B, N = red.m, self.B, self.N
+        self._sol = sol
+        theta = sol.theta
+        Q = red.modal_trajectory(self.basis, theta)
+        U = theta[2 * m :].reshape(B, m)
+        L = self.basis.block_length
+        block_of = np.minimum(np.arange(N) // L, B - 1)
+        D = self.scale
+        Hs = D[:, None] * sol.hessian * D[None, :]
+        cov = sla.cho_solve(sla.cho_factor(Hs), np.eye(self.dim)) * np.outer(D, D)
+        lift_std = np.array(
+            [
+                np.sqrt(max(red.lift_row @ cov[(2 + b) * m : (3 + b) * m, (2 + b) * m : (3 + b) * m] @ red.lift_row, 0))
+                for b in range(B)
+            ]
+        )
+        new = slice(self.start, self.start + N) if first else slice(self.start + N - self._shift, self.start + N)
+        idx = np.arange(N)[new.start - self.start : new.stop - self.start]
+        self._u[new] = U[block_of[idx]]
+        self._q[new] = Q[idx]
+        self._lift_std[new] = lift_std[block_of[idx]]
+        self._windows.append(
+            {
+                "start": self.start,
+                "iterations": sol.iterations,
+                "cost": sol.cost,
+                "status": sol.status.value,
+                "raw_status": sol.raw_status,
+                "seconds": sol.seconds,
+            }
+        )
+
+    def _absorb(self, shift: int) -> None:
+        """Arrival cost for the window ``shift`` samples later (information form, stable)."""
+        red, s = self.reduced, self.settings
+        m = red.m
+        sol = self._sol
+        problem = self._window_problem(self.start, self.lam)
+        Dx3 = self.scale[: 3 * m]
+        # Data of the first `shift` samples depend on (x, u_1) only; linearise at the optimum.
+        r, J = problem.linearize(sol.theta)
+        p = red.p
+        Jh = J[: shift * p, : 3 * m] * Dx3[None, :]
+        th = sol.theta[: 3 * m] / Dx3
+        Ia, ea = self._arrival
+        Ia_s = Dx3[:, None] * Ia * Dx3[None, :]
+        ea_s = Dx3 * ea
+        L1 = Ia_s + Jh.T @ Jh
+        e1 = ea_s + Jh.T @ (r[: shift * p] + Jh @ th)
+        # Transition over `shift` steps in scaled coordinates, with process noise on the state.
+        Fs, Gs = red.transition(shift)
+        Dx, Du = self._Dx, self._Du
+        Phi = np.zeros((2 * m, 2 * m))
+        Phi[:m, :m] = np.diag(Fs[:, 0, 0])
+        Phi[:m, m:] = np.diag(Fs[:, 0, 1])
+        Phi[m:, :m] = np.diag(Fs[:, 1, 0])
+        Phi[m:, m:] = np.diag(Fs[:, 1, 1])
+        Gam = np.vstack([np.diag(Gs[:, 0]), np.diag(Gs[:, 1])])
+        Phi_s = Phi * (Dx[None, :] / Dx[:, None])
+        Gam_s = Gam * (Du[None, :] / Dx[:, None])
+        Qi = np.eye(2 * m) / s.state_noise**2
+        # Joint information over (x_old, u, x_new) with x_new = Phi x_old + Gam u + w.
+        n3 = 5 * m
+        Lj = np.zeros((n3, n3))
+        ej = np.zeros(n3)
+        Lj[: 3 * m, : 3 * m] = L1
+        ej[: 3 * m] = e1
+        Tm = np.hstack([Phi_s, Gam_s, -np.eye(2 * m)])
+        Lj += Tm.T @ Qi @ Tm
+        keep = np.r_[3 * m : 5 * m, 2 * m : 3 * m]  # (x_new, u)
+        Lk, ek = _marginalize(Lj, ej, keep, np.arange(2 * m))
+        if self.B > 1 or s.load_model == "random_walk":
+            # u_next = u + w_u with the random-walk penalty: marginalise the old block.
+            lam_rw = self._lam_rw(self.lam) * (shift / s.stride)
+            Rs = red.roughness * np.outer(Du, Du)
+            Lr = np.zeros((4 * m, 4 * m))
+            er = np.zeros(4 * m)
+            Lr[: 3 * m, : 3 * m] = Lk
+            er[: 3 * m] = ek
+            Pm = np.hstack([np.zeros((m, 2 * m)), np.eye(m), -np.eye(m)])
+            Lr += lam_rw * Pm.T @ Rs @ Pm
+            Lk, ek = _marginalize(Lr, er, np.r_[: 2 * m, 3 * m : 4 * m], np.arange(2 * m, 3 * m))
+        self._arrival = (Lk / np.outer(Dx3, Dx3), ek / Dx3)
+        self._shift = shift
+
+    def step(self) -> bool:
+        """Advance one window; ``False`` (and no work) when the record is exhausted."""
+        if not self._ready:
+            raise InputError("MovingHorizonEstimator.step: call setup(measurements) first")
+        end = self.start + self.N
+        if end >= self.K:
+            return False
+        shift = min(self.settings.stride, self.K - end)
+        self._absorb(shift)
+        m, B = self.reduced.m, self.B
+        # Warm start: the previous optimum propagated over `shift` samples.
+        theta = self._sol.theta
+        Fs, Gs = self.reduced.transition(shift)
+        q, v, u1 = theta[:m], theta[m : 2 * m], theta[2 * m : 3 * m]
+        x_new = np.concatenate(
+            [Fs[:, 0, 0] * q + Fs[:, 0, 1] * v + Gs[:, 0] * u1, Fs[:, 1, 0] * q + Fs[:, 1, 1] * v + Gs[:, 1] * u1]
+        )
+        U = theta[2 * m :].reshape(B, m)
+        if B > 1:
+            U = np.vstack([U[1:], U[-1:]])
+        theta0 = np.concatenate([x_new, U.ravel()])
+        self.start += shift
+        problem = self._window_problem(self.start, self.lam)
+        sol = self.solver.solve(problem, theta0)
+        self._accept(sol)
+        return True
+
+    def run(self) -> IdentificationResult:
+        """Step to the end of the record and return the result."""
+        while self.step():
+            pass
+        return self.result()
+
+    @property
+    def current_lift(self) -> float:
+        """Lift (N) of the latest window's load estimate."""
+        m = self.reduced.m
+        return float(self.reduced.lift_row @ self._sol.theta[-m:])
+
+    def result(self) -> IdentificationResult:
+        """The histories so far as an :class:`IdentificationResult`."""
+        red = self.reduced
+        done = np.isfinite(self._u[:, 0])
+        U, Qm = self._u[done], self._q[done]
+        F = red.load(U)
+        # Deflection: retained modes + static response of the dropped modes to the load (per window).
+        Z = red.deflection(Qm)
+        if red.m < self.model.n:
+            uniq, inv = np.unique(U, axis=0, return_inverse=True)
+            corr = np.stack([red.residual_static(red.load(u)) for u in uniq])
+            Z = Z + corr[inv.ravel()]
+        lift = self.load_space.lift(F)
+        iters = [w["iterations"] for w in self._windows]
+        info = {
+            "backend": self.solver.name if self.settings.backend != "cvxpy" else f"cvxpy-{self.settings.qp_solver}",
+            "load_space": str(self.load_space.kind),
+            "modes": red.m,
+            "window": self.N,
+            "stride": self.settings.stride,
+            "load_model": self.settings.load_model,
+            "windows": len(self._windows),
+            "iterations_total": int(np.sum(iters)),
+            "iterations_per_window": iters,
+            "noise_std": self.noise_std,
+            "noise_source": self.noise_source,
+            "missing_samples": self.missing_rows,
+            "lambda": self.lam,
+            "lambda_selection": self.lambda_info,
+            "setup_s": self.setup_seconds,
+            "sign": {
+                "initial_load": self.initial_load,
+                "initial_deflection": self.initial_deflection,
+                "score": self.start_report.sign_score,
+                "candidates": self.start_report.candidates,
+            },
+            "statuses": sorted({w["status"] for w in self._windows}),
+        }
+        res = IdentificationResult(
+            method="mhe",
+            t=self.t[done],
+            load=F,
+            deflection=Z,
+            lift=lift,
+            lift_std=self._lift_std[done],
+            regularization=self.lam,
+            wall_s=time.perf_counter() - self._t_start,
+            info=info,
+            load_space=self.load_space.space,
+        )
+        return res
+
+
+def mhe_identify(
+    model: MembraneModel,
+    measurements: Measurements,
+    settings: MHESettings | None = None,
+    **setup_kwargs: Any,
+) -> IdentificationResult:
+    """One-shot moving-horizon identification: ``setup`` + ``run``.
+
+    Parameters
+    ----------
+    model : MembraneModel
+        Estimation model (mesh).
+    measurements : Measurements
+    settings : MHESettings, optional
+    **setup_kwargs
+        ``noise_std``, ``initial_load``, ``initial_deflection`` (see :meth:`MovingHorizonEstimator.setup`).
+    """
+    est = MovingHorizonEstimator(model, settings)
+    est.setup(measurements, **setup_kwargs)
+    return est.run()

@@ -1,0 +1,373 @@
+"""Window solvers of the moving-horizon estimator: one interface, three backends.
+
+* ``numpy``: Levenberg–Marquardt on the window's least-squares cost with dense Cholesky steps
+  (Gauss–Newton matrix, or the exact Hessian when it is positive definite). No bounds. The
+  fastest; the default.
+* ``cvxpy``: the same Gauss–Newton/Levenberg–Marquardt iteration, each step a convex QP built
+  once with CVXPY Parameters and re-solved (Clarabel by default, OSQP as option); supports
+  the pressure bounds.
+* ``ipopt``: the whole nonlinear window problem handed to IPOPT through CasADi (exact Hessian by
+  automatic differentiation), built once per window shape with parameters; supports bounds.
+
+All report :class:`wingopt.solvers.SolveStatus`; a failure raises :class:`~wingopt.errors.SolverError`
+naming the backend and its own status. Every backend works in scaled unknowns
+``xi = theta / scale`` so that all unknowns are O(1).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from wingopt.errors import InputError, SolverError
+from wingopt.estimation.mhe_window import WindowProblem
+from wingopt.solvers import SolveStatus, status_from
+
+__all__ = ["WindowSolution", "WindowSolver", "NumpySolver", "CvxpySolver", "IpoptSolver", "make_solver", "BACKENDS"]
+
+log = logging.getLogger(__name__)
+
+BACKENDS = ("numpy", "cvxpy", "ipopt")
+
+_HINT = "try another MHE backend (--backend numpy|cvxpy|ipopt), a longer window, or check the data's units"
+
+
+@dataclass(eq=False)
+class WindowSolution:
+    """Result of one window solve.
+
+    Attributes
+    ----------
+    theta : ndarray
+        Optimal unknowns (physical modal units).
+    cost : float
+        ``V(theta)`` (chi-square units).
+    hessian : ndarray
+        Gauss–Newton matrix ``J^T W J + H0`` at ``theta``: the posterior precision.
+    status : SolveStatus
+    raw_status : str
+        The backend's own status.
+    iterations : int
+    backend : str
+    seconds : float
+    """
+
+    theta: np.ndarray
+    cost: float
+    hessian: np.ndarray
+    status: SolveStatus
+    raw_status: str
+    iterations: int
+    backend: str
+    seconds: float
+
+
+class WindowSolver:
+    """Interface: ``solve(problem, theta0) -> WindowSolution``."""
+
+    name = "base"
+
+    def __init__(self, max_iterations: int = 100, tolerance: float = 1e-3) -> None:
+        self.max_iterations = int(max_iterations)
+        self.tolerance = float(tolerance)
+
+    def solve(self, problem: WindowProblem, theta0: np.ndarray) -> WindowSolution:  # pragma: no cover
+        raise NotImplementedError
+
+    def _finish(self, problem, theta, raw, iterations, t0, status=None) -> WindowSolution:
+        status = status or status_from(self.name, raw)
+        if not status.ok:
+            raise SolverError(self.name, raw, _HINT)
+        H, _ = problem.normal_equations(theta)
+        return WindowSolution(
+            theta, problem.cost(theta), H, status, raw, iterations, self.name, time.perf_counter() - t0
+        )
+
+
+def _cholesky(A: np.ndarray) -> np.ndarray | None:
+    try:
+        return np.linalg.cholesky(A)
+    except np.linalg.LinAlgError:
+        return None
+
+
+def _chol_solve(L: np.ndarray, b: np.ndarray) -> np.ndarray:
+    import scipy.linalg as sla
+
+    return sla.cho_solve((L, True), b, check_finite=False)
+
+
+class _LevenbergMarquardt(WindowSolver):
+    """Levenberg–Marquardt outer loop shared by the numpy and CVXPY backends (Nielsen's damping).
+
+    Subclasses provide :meth:`_step`, the minimiser of the damped quadratic model.
+    ``tolerance`` is in chi-square units: the iteration stops once the model predicts less
+    decrease than that (a change of the cost far below its statistical spread ``sqrt(2 n)``).
+    """
+
+    hessian = "gauss-newton"
+
+    def _step(self, problem, xi, Hs, bs, mu) -> np.ndarray | None:  # pragma: no cover
+        raise NotImplementedError
+
+    def solve(self, problem: WindowProblem, theta0: np.ndarray) -> WindowSolution:
+        t0 = time.perf_counter()
+        D = problem.scale
+        xi = np.asarray(theta0, dtype=float) / D
+        cost = problem.cost(D * xi)
+        if not np.isfinite(cost):
+            raise SolverError(self.name, "non-finite cost at the start", _HINT)
+        mu, nu = 1e-3, 2.0
+        raw = "maximum iterations reached"
+        it = 0
+        while it < self.max_iterations:
+            it += 1
+            H, b = problem.normal_equations(D * xi)
+            Hs = D[:, None] * H * D[None, :]
+            bs = D * b
+            if self.hessian == "newton":
+                Hx = Hs + D[:, None] * problem.second_order(D * xi) * D[None, :]
+                if _cholesky(Hx) is not None:
+                    Hs = 0.5 * (Hx + Hx.T)
+            accepted = False
+            while not accepted:
+                d = self._step(problem, xi, Hs, bs, mu)
+                if d is None:
+                    mu *= nu
+                    nu *= 2
+                    if mu > 1e12:
+                        break
+                    continue
+                pred = 2.0 * bs @ d - d @ Hs @ d
+                new = problem.cost(D * (xi + d))
+                gain = (cost - new) / pred if pred > 0 else -1.0
+                if gain > 0:
+                    accepted = True
+                    xi = xi + d
+                    mu *= max(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3)
+                    nu = 2.0
+                    decrease, cost = cost - new, new
+                else:
+                    mu *= nu
+                    nu *= 2
+                    if mu > 1e12 or pred <= self.tolerance:
+                        break
+            if not accepted:
+                raw = "converged (no further decrease)" if pred <= 10 * self.tolerance else "stalled"
+                break
+            if pred <= self.tolerance and decrease <= 10 * self.tolerance:
+                raw = "converged"
+                break
+        status = SolveStatus.OPTIMAL if raw.startswith("converged") else None
+        if raw == "maximum iterations reached":
+            # The cost is flat along poorly observed directions; an answer after the limit is
+            # still a usable (inaccurate) estimate.
+            status = SolveStatus.OPTIMAL_INACCURATE
+        if raw == "stalled":
+            status = SolveStatus.NUMERICAL_ERROR
+        return self._finish(problem, D * xi, raw, it, t0, status)
+
+
+class NumpySolver(_LevenbergMarquardt):
+    """Dense Levenberg–Marquardt; ``hessian="newton"`` uses the exact Hessian where it is positive definite."""
+
+    name = "numpy"
+
+    def __init__(self, max_iterations: int = 100, tolerance: float = 1e-3, hessian: str = "newton") -> None:
+        super().__init__(max_iterations, tolerance)
+        if hessian not in ("gauss-newton", "newton"):
+            raise InputError(f"hessian = {hessian!r}: expected 'gauss-newton' or 'newton'")
+        self.hessian = hessian
+
+    def solve(self, problem: WindowProblem, theta0: np.ndarray) -> WindowSolution:
+        if problem.bounds is not None:
+            raise InputError("pressure bounds need the cvxpy or ipopt MHE backend, not numpy")
+        return super().solve(problem, theta0)
+
+    def _step(self, problem, xi, Hs, bs, mu):
+        L = _cholesky(Hs + mu * np.diag(np.maximum(np.diag(Hs), 1e-12)))
+        return None if L is None else _chol_solve(L, bs)
+
+
+class CvxpySolver(_LevenbergMarquardt):
+    """Gauss–Newton/LM steps as convex QPs, built once per window shape with CVXPY Parameters.
+
+    Each step minimises ``||R xi_new - c||^2`` (``R^T R`` = damped Gauss–Newton matrix,
+    ``c = R xi + R^-T b``) subject to the bounds, so the QP is the exact LM subproblem.
+    """
+
+    name = "cvxpy"
+
+    def __init__(self, max_iterations: int = 100, tolerance: float = 1e-3, solver: str = "clarabel") -> None:
+        super().__init__(max_iterations, tolerance)
+        solver = solver.lower()
+        if solver not in ("clarabel", "osqp"):
+            raise InputError(f"qp solver = {solver!r}: expected 'clarabel' or 'osqp'")
+        self.qp_solver = solver
+        self._cache: dict = {}
+
+    @property
+    def label(self) -> str:
+        return f"cvxpy-{self.qp_solver}"
+
+    def _build(self, problem: WindowProblem):
+        import cvxpy as cp
+
+        n = problem.dim
+        nb = 0 if problem.bounds is None else problem.bounds.A.shape[0]
+        key = (n, nb)
+        if key in self._cache:
+            return self._cache[key]
+        x = cp.Variable(n)
+        R = cp.Parameter((n, n))
+        c = cp.Parameter(n)
+        cons = []
+        extra = {}
+        if nb:
+            Ab = cp.Parameter((nb, n))
+            lo = cp.Parameter(nb)
+            hi = cp.Parameter(nb)
+            cons = [Ab @ x >= lo, Ab @ x <= hi]
+            extra = {"A": Ab, "lo": lo, "hi": hi}
+        prob = cp.Problem(cp.Minimize(cp.sum_squares(R @ x - c)), cons)
+        self._cache[key] = (prob, x, R, c, extra)
+        return self._cache[key]
+
+    def _step(self, problem, xi, Hs, bs, mu):
+        import cvxpy as cp
+
+        Hd = Hs + mu * np.diag(np.maximum(np.diag(Hs), 1e-12))
+        L = _cholesky(Hd)
+        if L is None:
+            return None
+        prob, x, R, c, extra = self._build(problem)
+        R.value = L.T
+        # ||L^T x_new - c||^2 = (x_new - xi)^T Hd (x_new - xi) - 2 b^T (x_new - xi) + const
+        c.value = L.T @ xi + np.linalg.solve(L, bs)
+        if extra:
+            D = problem.scale
+            lim = 1e30
+            extra["A"].value = problem.bounds.A * D[None, :]
+            extra["lo"].value = np.maximum(problem.bounds.lo, -lim)
+            extra["hi"].value = np.minimum(problem.bounds.hi, lim)
+        try:
+            if self.qp_solver == "clarabel":
+                prob.solve(solver=cp.CLARABEL)
+            else:
+                prob.solve(solver=cp.OSQP, eps_abs=1e-9, eps_rel=1e-9, max_iter=20000, polishing=True)
+        except cp.SolverError as exc:
+            raise SolverError(self.label, f"solver error: {exc}", _HINT) from None
+        status = status_from(self.qp_solver, prob.status)
+        if not status.ok or x.value is None:
+            raise SolverError(self.label, str(prob.status), _HINT)
+        return np.asarray(x.value) - xi
+
+    def solve(self, problem: WindowProblem, theta0: np.ndarray) -> WindowSolution:
+        sol = super().solve(problem, theta0)
+        sol.backend = self.label
+        return sol
+
+
+class IpoptSolver(WindowSolver):
+    """The full nonlinear window problem with IPOPT (CasADi, exact Hessian), built once per shape.
+
+    Parameters (data, weights, quadratic part, bounds) are CasADi parameters, so consecutive
+    windows of the same length re-use one compiled NLP and warm-start from the previous answer.
+    """
+
+    name = "ipopt"
+
+    def __init__(self, max_iterations: int = 200, tolerance: float = 1e-3, print_level: int = 0) -> None:
+        super().__init__(max_iterations, tolerance)
+        self.print_level = print_level
+        self._cache: dict = {}
+
+    def _build(self, problem: WindowProblem):
+        import casadi as ca
+
+        red, basis = problem.reduced, problem.basis
+        N, p, m, B = basis.length, red.p, red.m, basis.blocks
+        n = problem.dim
+        nb = 0 if problem.bounds is None else problem.bounds.A.shape[0]
+        key = (id(red), N, B, n, nb)
+        if key in self._cache:
+            return self._cache[key]
+        xi = ca.MX.sym("xi", n)
+        P_y = ca.MX.sym("y", N, p)
+        P_w = ca.MX.sym("w", N, p)
+        P_H = ca.MX.sym("H", n, n)
+        P_g = ca.MX.sym("g", n)
+        P_D = ca.MX.sym("D", n)
+        theta = xi * P_D
+        q0, v0 = theta[:m], theta[m : 2 * m]
+        Q = ca.DM(basis.a) * ca.repmat(q0.T, N, 1) + ca.DM(basis.b) * ca.repmat(v0.T, N, 1)
+        for blk in range(B):
+            ub = theta[(2 + blk) * m : (3 + blk) * m]
+            Q = Q + ca.DM(basis.c[blk]) * ca.repmat(ub.T, N, 1)
+        data = 0
+        for s in range(p):
+            h = ca.sum2(ca.mtimes(Q, ca.DM(red.sensor_matrices[s])) * Q)
+            r = P_y[:, s] - h
+            data = data + ca.sumsqr(ca.sqrt(P_w[:, s]) * r)
+        # The quadratic part is passed in scaled form (H_s = D H D, g_s = D g).
+        f = data + ca.mtimes([xi.T, P_H, xi]) - 2 * ca.dot(P_g, xi)
+        params = ca.vertcat(ca.vec(P_y), ca.vec(P_w), ca.vec(P_H), P_g, P_D)
+        g = []
+        if nb:
+            P_A = ca.MX.sym("A", nb, n)
+            params = ca.vertcat(params, ca.vec(P_A))
+            g = ca.mtimes(P_A, xi)
+        nlp = {"x": xi, "p": params, "f": f}
+        if nb:
+            nlp["g"] = g
+        opts = {
+            "ipopt.print_level": self.print_level,
+            "print_time": False,
+            "ipopt.max_iter": self.max_iterations,
+            "ipopt.tol": 1e-8,
+            "ipopt.acceptable_tol": 1e-6,
+            "ipopt.sb": "yes",
+            "ipopt.mu_strategy": "adaptive",
+        }
+        if not nb:
+            opts["ipopt.mu_init"] = 1e-8
+        solver = ca.nlpsol("mhe_window", "ipopt", nlp, opts)
+        self._cache[key] = solver
+        return solver
+
+    def solve(self, problem: WindowProblem, theta0: np.ndarray) -> WindowSolution:
+
+        t0 = time.perf_counter()
+        solver = self._build(problem)
+        D = problem.scale
+        Hs = D[:, None] * problem.H0 * D[None, :]
+        params = [problem.y.ravel(order="F"), problem.w.ravel(order="F"), Hs.ravel(order="F"), D * problem.g0, D]
+        args = {"x0": np.asarray(theta0) / D}
+        if problem.bounds is not None:
+            params.append((problem.bounds.A * D[None, :]).ravel(order="F"))
+            args["lbg"] = problem.bounds.lo
+            args["ubg"] = problem.bounds.hi
+        args["p"] = np.concatenate(params)
+        try:
+            res = solver(**args)
+        except RuntimeError as exc:  # pragma: no cover - casadi raises on internal errors
+            raise SolverError(self.name, f"casadi error: {exc}", _HINT) from None
+        stats = solver.stats()
+        raw = stats.get("return_status", "unknown")
+        theta = D * np.asarray(res["x"]).ravel()
+        return self._finish(problem, theta, raw, int(stats.get("iter_count", 0)), t0)
+
+
+def make_solver(backend: str = "numpy", qp_solver: str = "clarabel", **kwargs) -> WindowSolver:
+    """A window solver by name: ``numpy``, ``cvxpy`` (``qp_solver`` clarabel|osqp) or ``ipopt``."""
+    if backend == "numpy":
+        return NumpySolver(**kwargs)
+    if backend == "cvxpy":
+        return CvxpySolver(solver=qp_solver, **kwargs)
+    if backend == "ipopt":
+        kwargs.pop("hessian", None)
+        return IpoptSolver(**kwargs)
+    raise InputError(f"backend = {backend!r}: expected one of {', '.join(BACKENDS)}")

@@ -1,0 +1,236 @@
+"""Start-up of the moving-horizon estimator: amplitude scan, coarse-to-fine solve, sign choice.
+
+Facts this module is built on (spec §4, "What is known about this inverse problem"):
+
+* A start from ``f = 0`` stalls: the output Jacobian ``2 x^T C_i`` carries no load information
+  once the transient has decayed, and the cost is a long curved valley in which Gauss–Newton
+  crawls. The start is therefore an **amplitude scan**, both signs, along the smoothest load
+  shape of ``Lam``, evaluated cheaply on the window's data.
+* From the best scan points a **coarse** problem (initial state in the lowest few modes, load in
+  the few smoothest shapes; ~10 unknowns) is solved to convergence, and only then the **full**
+  window problem, starting next to its minimum (a few Newton/LM iterations instead of hundreds).
+* The data are unchanged when both the initial state and the load flip sign, so every minimum
+  comes with a mirror image of exactly the same data misfit; a wrong-*relative*-sign minimum
+  (state and load of opposite orientation) lies close in cost. Each candidate is oriented by the
+  prior (:func:`sign_score`): the load must correlate positively with the prior load
+  ``initial_load`` (uniform), and, when a prior initial deflection is known (the protocol's bubble),
+  the initial deflection must correlate positively with it. Of the oriented candidates the one
+  with the least cost is kept.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from wingopt.estimation.mhe_model import ReducedModel
+from wingopt.estimation.mhe_solvers import WindowSolution, WindowSolver
+from wingopt.estimation.mhe_window import WindowProblem
+
+__all__ = ["SignPrior", "sign_score", "smooth_load_shapes", "start_window", "StartReport"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class SignPrior:
+    """What fixes the sign: the prior load coefficients and, optionally, the prior initial deflection.
+
+    Attributes
+    ----------
+    load : ndarray ``(n_f,)``
+        Prior mean load (the uniform ``initial_load`` projected on the load space).
+    deflection_modal : ndarray ``(m,)`` or None
+        Modal coordinates of the prior initial deflection, or ``None`` when unknown.
+    """
+
+    load: np.ndarray
+    deflection_modal: np.ndarray | None = None
+
+
+def sign_score(reduced: ReducedModel, theta: np.ndarray, prior: SignPrior) -> float:
+    """Agreement of ``theta`` with the sign prior, in ``[-2, 2]`` (``[-1, 1]`` without deflection prior).
+
+    Sum of the cosine between the estimated and the prior load (``L2`` inner product of the load
+    space) and, when known, the cosine between the estimated and the prior initial deflection
+    (mass inner product, i.e. the Euclidean one of modal coordinates). Mirror images have opposite
+    scores.
+    """
+    m = reduced.m
+    ls = reduced.load_space
+    f = reduced.load(theta[2 * m : 3 * m])
+    fp = prior.load
+    score = float(f @ (ls.gram @ fp)) / max(ls.l2_norm(f) * ls.l2_norm(fp), 1e-300)
+    if prior.deflection_modal is not None:
+        q, qp = theta[:m], prior.deflection_modal
+        score += float(q @ qp) / max(np.linalg.norm(q) * np.linalg.norm(qp), 1e-300)
+    return score
+
+
+def smooth_load_shapes(reduced: ReducedModel, count: int) -> np.ndarray:
+    """Modal forces ``(count, m)`` of the ``count`` smoothest load shapes (least ``Lam`` per ``L2``).
+
+    Generalised eigenvectors of ``(Lam, Gram)`` in the load space with the smallest eigenvalues,
+    mapped to modal forces and normalised to unit lift magnitude (or unit norm when the lift
+    vanishes, e.g. for shapes antisymmetric in x).
+    """
+    ls = reduced.load_space
+    scale = (np.pi / min(ls.space.width, ls.space.height)) ** 4
+    Lam = (ls.regularizer + reduced.ridge * scale * ls.gram).toarray()
+    _, V = sla.eigh(Lam, ls.gram.toarray(), subset_by_index=(0, count - 1))
+    U = (reduced.input_matrix @ V).T
+    out = []
+    for u, v in zip(U, V.T):
+        lift = abs(ls.lift(v))
+        norm = ls.l2_norm(v) * ls.space.width * ls.space.height
+        out.append(u / max(lift, 1e-3 * norm))
+    return np.array(out)
+
+
+class _Subspace:
+    """The window problem restricted to ``theta = P z`` (same interface as :class:`WindowProblem`)."""
+
+    bounds = None
+
+    def __init__(self, problem: WindowProblem, P: np.ndarray) -> None:
+        self.problem, self.P = problem, P
+        self.scale = np.ones(P.shape[1])
+        self.H0 = P.T @ problem.H0 @ P
+        self.g0 = P.T @ problem.g0
+
+    @property
+    def dim(self) -> int:
+        return self.P.shape[1]
+
+    def cost(self, z):
+        return self.problem.cost(self.P @ z)
+
+    def normal_equations(self, z):
+        r, J = self.problem.linearize(self.P @ z)
+        J = J @ self.P
+        H = J.T @ J + self.H0
+        return 0.5 * (H + H.T), J.T @ r - self.H0 @ z + self.g0
+
+    def second_order(self, z):
+        return self.P.T @ self.problem.second_order(self.P @ z) @ self.P
+
+
+@dataclass
+class StartReport:
+    """Diagnostics of the start-up: scan, candidates and the sign decision."""
+
+    scan_best: float
+    candidates: list
+    chosen: int
+    sign_score: float
+    coarse_iterations: int
+    fine_iterations: int
+
+
+def _orient(reduced, theta, prior):
+    s = sign_score(reduced, theta, prior)
+    return (theta, s) if s >= 0 else (-theta, -s)
+
+
+def start_window(
+    problem: WindowProblem,
+    solver: WindowSolver,
+    coarse_solver: WindowSolver,
+    prior: SignPrior,
+    x_prior: np.ndarray,
+    lift_scale: float,
+    state_modes: int = 4,
+    shapes: int = 3,
+    amplitudes: int = 16,
+    keep: int = 2,
+) -> tuple[WindowSolution, StartReport]:
+    """Solve the first window from scratch: scan, coarse solve, fine solve, orient by the prior.
+
+    Parameters
+    ----------
+    problem : WindowProblem
+    solver, coarse_solver : WindowSolver
+        For the full problem and for the coarse subspace problem.
+    prior : SignPrior
+    x_prior : ndarray ``(2m,)``
+        Prior mean of the initial modal state (start of the scan).
+    lift_scale : float
+        Typical lift magnitude (N); the scan covers ``1e-2 .. 1e1`` times it, both signs.
+    state_modes, shapes : int
+        Size of the coarse problem: initial state in the lowest ``state_modes`` modes, load in the
+        ``shapes`` smoothest shapes.
+    amplitudes : int
+        Scan points per sign.
+    keep : int
+        Distinct coarse minima refined on the full problem.
+    """
+    red = problem.reduced
+    m = red.m
+    D = problem.scale
+    dim = problem.dim
+    ms = min(state_modes, m)
+    U = smooth_load_shapes(red, shapes) * lift_scale
+    # Subspace: q0, q0' of the lowest modes (scaled), load = sum of smooth shapes, all blocks alike.
+    nz = 2 * ms + shapes
+    P = np.zeros((dim, nz))
+    for j in range(ms):
+        P[j, j] = D[j]
+        P[m + j, ms + j] = D[m + j]
+    blocks = (dim - 2 * m) // m
+    for b in range(blocks):
+        P[(2 + b) * m : (3 + b) * m, 2 * ms :] = U.T
+    base = np.zeros(dim)
+    base[: 2 * m] = x_prior
+    sub = _Subspace(problem, P)
+    z_base = np.zeros(nz)
+    z_base[:ms] = x_prior[:ms] / D[:ms]
+    z_base[ms : 2 * ms] = x_prior[m : m + ms] / D[m : m + ms]
+    grid = np.logspace(-2, 1, amplitudes)
+    scan = []
+    for a in np.concatenate([-grid, grid]):
+        z = z_base.copy()
+        z[2 * ms] = a
+        scan.append((sub.cost(z), a, z))
+    scan.sort(key=lambda s: s[0])
+    # Best points of each sign (the two signs are distinct starts once the state prior is non-zero).
+    starts = [s for s in scan if s[1] > 0][:keep] + [s for s in scan if s[1] < 0][:keep]
+    coarse = []
+    coarse_it = 0
+    for _, _, z in starts:
+        try:
+            sol = coarse_solver.solve(sub, z)
+        except Exception as exc:  # a failed start is just a discarded candidate
+            log.debug("coarse start failed: %s", exc)
+            continue
+        coarse_it += sol.iterations
+        theta, _ = _orient(red, P @ sol.theta, prior)
+        coarse.append((sol.cost, theta))
+    coarse.sort(key=lambda c: c[0])
+    distinct = []
+    for cst, th in coarse:
+        if all(np.linalg.norm((th - o) / D) > 1e-3 * (1 + np.linalg.norm(o / D)) for _, o in distinct):
+            distinct.append((cst, th))
+    candidates = []
+    fine_it = 0
+    best = None
+    for _, th in distinct[:keep]:
+        sol = solver.solve(problem, th)
+        fine_it += sol.iterations
+        theta, score = _orient(red, sol.theta, prior)
+        sol.theta = theta
+        sol.cost = problem.cost(theta)
+        candidates.append({"cost": sol.cost, "sign_score": score, "lift": float(red.lift_row @ theta[2 * m : 3 * m])})
+        if best is None or sol.cost < best[0].cost:
+            best = (sol, score, len(candidates) - 1)
+    if best is None:
+        from wingopt.errors import SolverError
+
+        raise SolverError(solver.name, "no start-up candidate converged", "check the data and the noise level")
+    sol, score, idx = best
+    sol.hessian, _ = problem.normal_equations(sol.theta)
+    sol.iterations = coarse_it + fine_it
+    report = StartReport(scan[0][0], candidates, idx, score, coarse_it, fine_it)
+    return sol, report

@@ -1,0 +1,1 @@
+"""Figures written by the commands (matplotlib, Agg backend: no display needed)."""
