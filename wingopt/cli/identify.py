@@ -88,10 +88,10 @@ def register(sub, common) -> None:
     g.add_argument("--load-model", choices=("constant", "random_walk"), default="constant")
     g.add_argument("--lambda", dest="lam", type=float, help="fixed Tikhonov weight (default: from the data)")
     g.add_argument("--lambda-rule", choices=("robust", "discrepancy", "gcv"), default="robust")
-    g.add_argument("--modes", type=int, default=60, help="membrane modes kept (default 60)")
+    g.add_argument("--modes", type=int, default=40, help="membrane modes kept (default 40)")
     g.add_argument("--pressure-bounds", nargs=2, type=float, metavar=("MIN", "MAX"), help="Pa (cvxpy/ipopt)")
     p.add_argument("--initial-load", type=float, help="sign prior, Pa (default: the problem's initial_load)")
-    p.add_argument("--noise-std", type=float, help="sensor noise std for --data (default: estimated)")
+    p.add_argument("--noise-std", type=float, help="sensor noise std (default: estimated from the data)")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--out", required=True, help="output directory (replaced atomically)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
@@ -141,7 +141,9 @@ def run(args) -> int:
             raise InputError(f"t-end = {args.t_end!r}: expected a positive duration (s)")
         truth_nodes = None if args.same_mesh else parse_mesh(args.truth_mesh)
         case = CleanCases(problem, truth_nodes, args.t_end).case(args.load, noise, args.seed)
-        meas = case.measurements
+        # The estimators are not told the simulated noise level: they estimate it from the data
+        # (or take --noise-std), as they would have to with measurements.
+        meas = _with_noise(case.measurements, args.noise_std)
         if initial_load is None:
             initial_load = protocol_sign(args.load) * abs(problem.identification.initial_load)
         summary.update(
@@ -154,10 +156,7 @@ def run(args) -> int:
     else:
         meas, report = read_measurements(args.data, problem.sensor_names)
         summary["data"] = report.as_dict()
-        if args.noise_std is not None:
-            if not args.noise_std > 0:
-                raise InputError(f"noise-std = {args.noise_std!r}: expected a positive number")
-            meas = _with_noise(meas, args.noise_std)
+        meas = _with_noise(meas, args.noise_std)
     t0 = time.perf_counter()
     result = run_method(
         "mhe" if args.method == "mhe" else ("jekf-tuned" if args.method == "jekf-tuned" else "jekf-seed"),
@@ -208,8 +207,13 @@ def run(args) -> int:
 
 
 def _with_noise(meas, std):
+    """The measurements with the noise level ``std`` (``None``: unknown, to be estimated)."""
     import dataclasses
 
+    if std is None:
+        return dataclasses.replace(meas, noise_std=None)
+    if not (np.isfinite(std) and std > 0):
+        raise InputError(f"noise-std = {std!r}: expected a positive number (sensor output units)")
     return dataclasses.replace(meas, noise_std=np.full(len(meas.sensor_names), float(std)))
 
 

@@ -78,7 +78,8 @@ class MHESettings:
         Random walk only: time (s) over which a load change as large as the load itself costs as
         much as its roughness; ``lambda_rw = lambda * temporal_smoothness / (stride * dt)``.
     modes : int or None
-        Membrane modes kept (``None``: all). 60 keeps the sensor outputs of L1–L3 within 0.1 %.
+        Membrane modes kept (``None``: all). 40 keeps the steady sensor outputs of L1–L3 within
+        0.3 %; the estimates with 30, 40, 60 and 100 modes agree to 3 digits (measured).
     load_space : {"fixed", "free"}
         Load basis (:mod:`wingopt.estimation.load_space`).
     backend : {"numpy", "cvxpy", "ipopt"}
@@ -89,7 +90,8 @@ class MHESettings:
         Fixed lambda; ``None``: choose it from the data with ``lambda_rule``.
     lambda_rule : {"robust", "discrepancy", "gcv"}
     lambda_grid : tuple of float
-        Relative lambdas tried by the rule (multiples of the problem's natural scale).
+        Relative lambdas tried by the rule (multiples of the problem's natural scale, see
+        :meth:`MovingHorizonEstimator.natural_lambda`); the bracket of the chosen one is refined once.
     state_prior : float
         Prior standard deviation of the initial modal state, relative to the data's amplitude:
         ``state_prior * A / omega_j`` for displacements and ``state_prior * A`` for velocities
@@ -111,19 +113,19 @@ class MHESettings:
     stride: int = 50
     load_model: str = "constant"
     temporal_smoothness: float = 0.05
-    modes: int | None = 60
+    modes: int | None = 40
     load_space: str = "fixed"
     backend: str = "numpy"
     qp_solver: str = "clarabel"
     regularization: float | None = None
     lambda_rule: str = "robust"
-    lambda_grid: tuple[float, ...] = tuple(10.0 ** np.arange(-6.0, 0.01, 0.5))
+    lambda_grid: tuple[float, ...] = tuple(10.0 ** np.arange(-6.0, 0.01, 1.0))
     state_prior: float = 1.0
     state_noise: float = 1e-6
     pressure_bounds: tuple[float, float] | None = None
     bound_grid: tuple[int, int] = (15, 8)
     max_iterations: int = 100
-    tolerance: float = 1e-3
+    tolerance: float = 1e-2
     start_shapes: int = 3
     start_state_modes: int = 4
     start_amplitudes: int = 16
@@ -434,25 +436,36 @@ class MovingHorizonEstimator:
         lam_nat = natural(sol0.theta)
         self._lam_nat = lam_nat
         path: list[LambdaPoint] = []
-        sols: dict[float, tuple] = {}
+        sols: dict[float, np.ndarray] = {}
         lams = [lam_nat * g for g in grid]
-        # Continuation outwards from the probe.
-        i0 = int(np.argmin([abs(np.log(lam / lam_probe)) for lam in lams]))
-        order = list(range(i0, len(lams))) + list(range(i0 - 1, -1, -1))
-        prev = {}
-        for i in order:
-            lam = lams[i]
+
+        def solve_at(lam, theta0):
             problem = self._window_problem(0, lam)
-            neighbour = prev.get(i - 1 if i > i0 else i + 1, sol0.theta)
-            sol = self.solver.solve(problem, neighbour if i != i0 else sol0.theta)
-            prev[i] = sol.theta
-            sols[lam] = (sol, problem)
+            sol = self.solver.solve(problem, theta0)
+            sols[lam] = sol.theta
             path.append(self._path_point(problem, sol, lam))
+            return sol
+
+        # Continuation outwards from the probe, each solve warm-started from its neighbour.
+        i0 = int(np.argmin([abs(np.log(lam / lam_probe)) for lam in lams]))
+        theta = sol0.theta
+        for i in range(i0, len(lams)):
+            theta = solve_at(lams[i], theta).theta
+        theta = sols[lams[i0]]
+        for i in range(i0 - 1, -1, -1):
+            theta = solve_at(lams[i], theta).theta
+        # Refine once inside the bracket of the chosen lambda (the grid is coarse, the knee sharp).
         lam, info = choose_lambda(path, s.lambda_rule)
-        # Re-solve at the chosen weight from the nearest grid solution.
+        known = sorted(sols)
+        lo = max((x for x in known if x <= lam), default=known[0])
+        hi = min((x for x in known if x >= lam), default=known[-1])
+        if hi > lo * 1.5:
+            mid_lam = float(np.sqrt(lo * hi))
+            solve_at(mid_lam, sols[lo])
+            lam, info = choose_lambda(path, s.lambda_rule)
+        # Re-solve at the chosen weight from the nearest path solution.
         near = min(sols, key=lambda x: abs(np.log(x / lam)))
-        problem = self._window_problem(0, lam)
-        sol = self.solver.solve(problem, sols[near][0].theta)
+        sol = self.solver.solve(self._window_problem(0, lam), sols[near])
         self.lam = lam
         info["natural_scale"] = lam_nat
         info["path"] = [dataclasses.asdict(p) for p in sorted(path, key=lambda p: p.lam)]

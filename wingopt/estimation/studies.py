@@ -68,10 +68,22 @@ def protocol_sign(load: str) -> float:
 
 
 class CleanCases:
-    """Noise-free protocol runs, simulated once per load; :meth:`case` adds seeded noise."""
+    """Noise-free protocol runs, simulated once per load; :meth:`case` adds seeded noise.
 
-    def __init__(self, problem: MembraneProblem, truth_nodes: tuple[int, int] | None = TRUTH_NODES, t_end=1.0):
+    ``tell_noise=False`` (default) leaves ``Measurements.noise_std`` empty, so estimators must
+    estimate the noise level from the data, as with measurements.
+    """
+
+    def __init__(
+        self,
+        problem: MembraneProblem,
+        truth_nodes: tuple[int, int] | None = TRUTH_NODES,
+        t_end: float = 1.0,
+        tell_noise: bool = False,
+    ):
         self.problem, self.truth_nodes, self.t_end = problem, truth_nodes, t_end
+        # By default the estimators are not told the simulated noise level (they estimate it).
+        self.tell_noise = tell_noise
         self._clean: dict[str, SimulatedCase] = {}
 
     def clean(self, load: str) -> SimulatedCase:
@@ -86,7 +98,7 @@ class CleanCases:
         meas = dataclasses.replace(
             c.measurements,
             values=noisy,
-            noise_std=sigma,
+            noise_std=sigma if self.tell_noise else None,
             source=c.measurements.source.replace("0% seed None", f"{100 * noise:g}% seed {seed}"),
         )
         return dataclasses.replace(c, measurements=meas, noise_fraction=noise, seed=seed)

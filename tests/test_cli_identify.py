@@ -1,0 +1,184 @@
+"""``wingopt identify``: outputs, the noise convention, the CSV data workflow and its errors."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from wingopt.cli import main
+from wingopt.estimation.protocol import simulate_case
+from wingopt.problem import PROBLEMS_DIR, load_problem
+
+FAST = ["--window", "100", "--stride", "50", "--modes", "20", "--truth-mesh", "25x13", "--t-end", "0.3"]
+
+
+@pytest.fixture(scope="module")
+def small_file(tmp_path_factory):
+    src = (PROBLEMS_DIR / "membrane.toml").read_text().replace("nodes = [25, 13]", "nodes = [13, 7]")
+    path = tmp_path_factory.mktemp("problem") / "small.toml"
+    path.write_text(src)
+    return path
+
+
+@pytest.fixture(scope="module")
+def record(small_file):
+    """A simulated 0.4 s record on the small problem (truth 25x13), as measured data would be."""
+    problem = load_problem(small_file)
+    case = simulate_case(problem, "L1", 0.01, 4, (25, 13), t_end=0.4)
+    return problem, case
+
+
+def write_csv(path, t, values, names, extra=None):
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["t", *names] + ([extra[0]] if extra else []))
+        for k in range(t.size):
+            row = [f"{t[k]:.6f}"] + ["" if np.isnan(v) else f"{v:.8e}" for v in values[k]]
+            w.writerow(row + ([extra[1]] if extra else []))
+
+
+def test_identify_simulated_writes_the_contract(small_file, tmp_path, capsys):
+    out = tmp_path / "run"
+    argv = ["identify", str(small_file), "--load", "L1", "--noise", "1", "--seed", "0", "--out", str(out)]
+    assert main(argv + FAST + ["--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    on_disk = json.loads((out / "summary.json").read_text())
+    assert summary == on_disk
+    for key in ("lift_N", "method", "wall_s", "load_error", "deflection_error"):
+        assert key in summary
+    assert summary["method"] == "mhe" and summary["noise_percent"] == 1.0 and summary["truth_mesh"] == [25, 13]
+    assert summary["load_error"] < 0.05 and summary["sign_ok"]
+    assert summary["lift_N"] == pytest.approx(summary["true_lift_N"], rel=0.03)
+    with open(out / "load.csv") as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0] == ["x", "y", "pressure_Pa"] and len(rows) == 1 + 57 * 29
+    xy = np.array(rows[1:], dtype=float)
+    assert xy[:, 0].min() == 0 and xy[:, 0].max() == pytest.approx(0.14) and xy[:, 1].max() == pytest.approx(0.07)
+    with open(out / "lift.csv") as fh:
+        lift = list(csv.reader(fh))
+    assert lift[0] == ["t", "lift_N", "lift_std_N"] and len(lift) == 1 + 301
+    for png in ("load_field.png", "lift.png", "errors.png"):
+        assert (out / png).stat().st_size > 1000
+
+
+def test_same_mesh_protocol_option(small_file, tmp_path, capsys):
+    out = tmp_path / "same"
+    argv = ["identify", str(small_file), "--load", "L2", "--noise", "5", "--same-mesh", "--no-plots"]
+    assert main(argv + FAST + ["--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["truth_mesh"] == [13, 7] and summary["protocol"].startswith("same-mesh")
+    assert not list(out.glob("*.png"))
+
+
+@pytest.mark.parametrize(
+    "noise,needle",
+    [
+        ("0.01", "ambiguous"),
+        ("0.05", "for 5 % write 5"),
+        ("150", "between 0 and 100"),
+        ("one", "expected a percentage"),
+    ],
+)
+def test_noise_convention_rejects_ambiguous_values(small_file, tmp_path, capsys, noise, needle):
+    out = tmp_path / "bad"
+    argv = ["identify", str(small_file), "--load", "L1", "--noise", noise, "--out", str(out)]
+    assert main(argv + FAST) == 2
+    err = capsys.readouterr().err
+    assert needle in err and err.count("\n") == 1
+    assert not out.exists()
+
+
+def test_noise_percent_sign_is_explicit():
+    from wingopt.cli.identify import parse_noise
+
+    assert parse_noise("1") == 0.01 and parse_noise("5") == 0.05 and parse_noise("1%") == 0.01
+    assert parse_noise("0.05%") == pytest.approx(5e-4) and parse_noise("0") == 0.0
+
+
+def test_identify_from_csv_with_missing_rows_and_gaps(record, small_file, tmp_path, capsys):
+    problem, case = record
+    meas = case.measurements
+    vals = meas.values.copy()
+    vals[150:160] = np.nan  # ten rows of missing values
+    keep = np.ones(meas.count, bool)
+    keep[300:305] = False  # five rows dropped: a gap in time
+    data = tmp_path / "tunnel.csv"
+    write_csv(data, meas.t[keep], vals[keep], problem.sensor_names, extra=("balance_N", "0.8"))
+    out = tmp_path / "csvrun"
+    argv = ["identify", str(small_file), "--data", str(data), "--out", str(out), "--json"]
+    assert main(argv + FAST[:6]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["data"]["missing_rows"] == 10 and summary["data"]["gap_rows_filled"] == 5
+    assert summary["data"]["ignored_columns"] == ["balance_N"]
+    assert summary["missing_samples"] == 15 and summary["samples"] == meas.count
+    assert summary["estimator"]["noise_source"] == "estimated from the data"
+    assert "load_error" not in summary
+    assert summary["lift_N"] == pytest.approx(case.true_lift, rel=0.03)
+    assert (out / "lift.csv").exists() and (out / "load_field.png").exists()
+
+
+def _bad_files(tmp_path, record):
+    problem, case = record
+    meas = case.measurements
+    names = problem.sensor_names
+    files = {}
+    p = tmp_path / "empty.csv"
+    p.write_text("")
+    files["empty"] = (p, "empty file")
+    p = tmp_path / "header.csv"
+    p.write_text("t,S1,S2,S3,S4\n")
+    files["header only"] = (p, "no data rows")
+    p = tmp_path / "missing.csv"
+    write_csv(p, meas.t[:50], meas.values[:50, :3], names[:3])
+    files["missing column"] = (p, "missing sensor column(s) S4")
+    t = meas.t[:50].copy()
+    t[20] = t[19]
+    p = tmp_path / "mono.csv"
+    write_csv(p, t, meas.values[:50], names)
+    files["non-monotonic"] = (p, "strictly increasing")
+    t = meas.t[:50] + np.where(np.arange(50) > 25, 0.0004, 0.0)
+    p = tmp_path / "irregular.csv"
+    write_csv(p, t, meas.values[:50], names)
+    files["irregular"] = (p, "irregular sampling")
+    p = tmp_path / "units.csv"
+    write_csv(p, meas.t[:50], meas.values[:50] * 1e6, names)
+    files["units"] = (p, "percent or microstrain")
+    p = tmp_path / "text.csv"
+    write_csv(p, meas.t[:50], meas.values[:50], names)
+    lines = p.read_text().splitlines()
+    lines[7] = lines[7].replace(lines[7].split(",")[2], "abc")
+    p.write_text("\n".join(lines) + "\n")
+    files["non-numeric"] = (p, ":8: S2 = 'abc'")
+    files["no file"] = (tmp_path / "nowhere.csv", "no such file")
+    return files
+
+
+@pytest.mark.parametrize(
+    "which", ["empty", "header only", "missing column", "non-monotonic", "irregular", "units", "non-numeric", "no file"]
+)
+def test_bad_csv_is_one_line_exit_2_and_no_output(record, small_file, tmp_path, capsys, which):
+    path, needle = _bad_files(tmp_path, record)[which]
+    out = tmp_path / "never"
+    assert main(["identify", str(small_file), "--data", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert needle in err, err
+    assert err.count("\n") == 1
+    assert not out.exists() and not list(tmp_path.glob(".never*"))
+
+
+def test_existing_output_survives_a_failed_run(record, small_file, tmp_path, capsys):
+    out = tmp_path / "keep"
+    out.mkdir()
+    (out / "summary.json").write_text("{}")
+    bad = tmp_path / "empty.csv"
+    bad.write_text("")
+    assert main(["identify", str(small_file), "--data", str(bad), "--out", str(out)]) == 2
+    assert (out / "summary.json").read_text() == "{}"
+
+
+def test_help_has_an_example(capsys):
+    with pytest.raises(SystemExit):
+        main(["identify", "--help"])
+    text = capsys.readouterr().out
+    assert "wingopt identify membrane --load L1" in text and "PERCENT" in text
