@@ -44,6 +44,9 @@ __all__ = [
     "consistency_study",
     "oracle_lambda",
     "protocol_sign",
+    "sign_and_band_study",
+    "Task",
+    "ORACLE_OFFSETS",
 ]
 
 log = logging.getLogger(__name__)
@@ -210,6 +213,54 @@ def oracle_lambda(
     return lam, err, errs
 
 
+@dataclass(frozen=True)
+class Task:
+    """One (case, seed, method) run of a study."""
+
+    load: str
+    noise: float
+    seed: int
+    method: str
+
+    @property
+    def key(self) -> tuple:
+        return (self.load, round(self.noise, 6), self.seed, self.method)
+
+
+_WORKER: dict = {}
+
+
+def _worker_init(problem, truth_nodes, settings, oracle, oracle_offsets):
+    _WORKER.update(
+        model=MembraneModel.from_problem(problem),
+        clean=CleanCases(problem, truth_nodes),
+        settings=settings,
+        oracle=oracle,
+        offsets=oracle_offsets,
+        problem=problem,
+    )
+
+
+def _run_task(task: Task) -> CaseRecord:
+    w = _WORKER
+    model, settings = w["model"], w["settings"]
+    case = w["clean"].case(task.load, task.noise, task.seed)
+    sign = protocol_sign(task.load) * abs(w["problem"].identification.initial_load)
+    t0 = time.perf_counter()
+    res = run_method(task.method, model, case.measurements, settings, initial_load=sign, truth=case)
+    rec = evaluate(case, res, model, task.method)
+    rec.wall_s = time.perf_counter() - t0
+    if task.method == "mhe" and w["oracle"]:
+        grid = [rec.regularization * 10.0**e for e in w["offsets"]]
+        lam, err, _ = oracle_lambda(case, model, settings, grid, initial_load=sign)
+        rec.oracle_regularization, rec.oracle_load_error = lam, min(err, rec.load_error)
+    return rec
+
+
+ORACLE_OFFSETS = tuple(np.arange(-2.0, 1.01, 0.5))
+"""Oracle grid, in decades around the data-chosen lambda (the rule sits half a decade below the knee)."""
+
+
 def comparison_study(
     problem: MembraneProblem,
     loads: Sequence[str] = ("L1", "L2", "L3"),
@@ -219,39 +270,63 @@ def comparison_study(
     mhe_settings: MHESettings | None = None,
     truth_nodes: tuple[int, int] | None = TRUTH_NODES,
     oracle: bool = True,
-    oracle_grid: Sequence[float] | None = None,
-    progress: Callable[[str], None] | None = None,
+    oracle_offsets: Sequence[float] = ORACLE_OFFSETS,
+    done: Sequence[CaseRecord] = (),
+    jobs: int = 1,
+    on_record: Callable[[CaseRecord], None] | None = None,
 ) -> list[CaseRecord]:
-    """Run every method on every case; returns one :class:`CaseRecord` per (case, seed, method).
+    """Run every method on every case; one :class:`CaseRecord` per (case, seed, method).
 
-    ``oracle``: also find the MHE's oracle lambda per case on ``oracle_grid`` (multiples, 10^-0.5
-    apart, of the data-chosen lambda by default) to report the gap to the data-only rule.
+    ``oracle``: also find the MHE's oracle lambda per case (least final load error given the
+    truth) on ``chosen lambda * 10**oracle_offsets``, to report the gap to the data-only rule.
+    ``done``: records already computed (skipped, returned with the new ones). ``jobs``: worker
+    processes. ``on_record`` is called with every new record as it arrives (progress, saving).
     """
-    model = MembraneModel.from_problem(problem)
-    clean = CleanCases(problem, truth_nodes)
     settings = mhe_settings or MHESettings()
-    records = []
-    for load in loads:
-        for noise in noises:
-            for seed in seeds:
-                case = clean.case(load, noise, seed)
-                sign = protocol_sign(load) * abs(problem.identification.initial_load)
-                for method in methods:
-                    t0 = time.perf_counter()
-                    res = run_method(method, model, case.measurements, settings, initial_load=sign, truth=case)
-                    rec = evaluate(case, res, model, method)
-                    rec.wall_s = time.perf_counter() - t0
-                    if method == "mhe" and oracle:
-                        grid = oracle_grid or [rec.regularization * 10.0**e for e in np.arange(-2.0, 2.01, 0.5)]
-                        lam, err, _ = oracle_lambda(case, model, settings, grid, initial_load=sign)
-                        rec.oracle_regularization, rec.oracle_load_error = lam, min(err, rec.load_error)
-                    records.append(rec)
-                    if progress:
-                        progress(
-                            f"{load} {100 * noise:g}% seed {seed} {method}: load {rec.load_error:.4f} "
-                            f"deflection {rec.deflection_error:.2e} lift {rec.lift_error:.4f} ({rec.wall_s:.1f} s)"
-                        )
+    have = {(r.load, round(r.noise, 6), r.seed, r.method) for r in done}
+    tasks = [
+        Task(load, float(noise), int(seed), method)
+        for load in loads
+        for noise in noises
+        for seed in seeds
+        for method in methods
+        if (load, round(float(noise), 6), int(seed), method) not in have
+    ]
+    records = list(done)
+    init = (problem, truth_nodes, settings, oracle, tuple(oracle_offsets))
+    if jobs <= 1 or len(tasks) <= 1:
+        _worker_init(*init)
+        results = map(_run_task, tasks)
+        for rec in results:
+            records.append(rec)
+            if on_record:
+                on_record(rec)
+        return records
+    import multiprocessing as mp
+
+    with mp.get_context("fork").Pool(jobs, initializer=_worker_init, initargs=init) as pool:
+        for rec in pool.imap_unordered(_run_task, tasks):
+            records.append(rec)
+            if on_record:
+                on_record(rec)
     return records
+
+
+def sign_and_band_study(
+    problem: MembraneProblem,
+    loads: Sequence[str] = ("L1", "L2", "L3"),
+    noise: float = 0.05,
+    seeds: Iterable[int] = range(20),
+    mhe_settings: MHESettings | None = None,
+    truth_nodes: tuple[int, int] | None = TRUTH_NODES,
+    done: Sequence[CaseRecord] = (),
+    jobs: int = 1,
+    on_record: Callable[[CaseRecord], None] | None = None,
+) -> list[CaseRecord]:
+    """MHE only, many noise seeds: sign right and lift band coverage per load (records as above)."""
+    return comparison_study(
+        problem, loads, (noise,), seeds, ("mhe",), mhe_settings, truth_nodes, False, (), done, jobs, on_record
+    )
 
 
 def summarize(records: Sequence[CaseRecord]) -> list[dict]:
