@@ -57,6 +57,10 @@ log = logging.getLogger(__name__)
 
 LOAD_MODELS = ("constant", "random_walk")
 
+SIGN_MARGIN = 0.1
+"""Below this agreement with the prior (:func:`~wingopt.estimation.mhe_start.sign_score`) the sign
+is reported as undetermined (e.g. L2, no net lift, without an initial-deflection prior)."""
+
 
 @dataclass(frozen=True)
 class MHESettings:
@@ -334,6 +338,12 @@ class MovingHorizonEstimator:
         else:
             sol, report = self._choose_lambda()
         self.start_report = report
+        if report.sign_score < SIGN_MARGIN:
+            log.warning(
+                "the sign of the load is not determined by the prior (score %.3f): a load without net lift "
+                "needs the initial-deflection prior (initial_deflection) to fix its sign",
+                report.sign_score,
+            )
         self._accept(sol, first=True)
         self.setup_seconds = time.perf_counter() - t0
         self._t_start = t0
@@ -397,7 +407,7 @@ class MovingHorizonEstimator:
         return lam * s.temporal_smoothness / (s.stride * self.dt)
 
     # -- start-up and lambda -----------------------------------------------------------------
-    def _start(self, lam: float):
+    def _start(self, lam: float, extra_starts: tuple = ()):
         problem = self._window_problem(0, lam)
         s = self.settings
         return start_window(
@@ -410,6 +420,7 @@ class MovingHorizonEstimator:
             state_modes=s.start_state_modes,
             shapes=s.start_shapes,
             amplitudes=s.start_amplitudes,
+            extra_starts=extra_starts,
         )
 
     def natural_lambda(self) -> float:
@@ -470,9 +481,11 @@ class MovingHorizonEstimator:
             mid_lam = float(np.sqrt(lo * hi))
             solve_at(mid_lam, sols[lo])
             lam, info = choose_lambda(path, s.lambda_rule)
-        # Re-solve at the chosen weight from the nearest path solution.
+        # At the chosen weight, start afresh (scan, both signs) and from the nearest path
+        # solution: the orientation and the family of the probe's minimum need not be the best
+        # at this lambda (the probe is far more regularised).
         near = min(sols, key=lambda x: abs(np.log(x / lam)))
-        sol = self.solver.solve(self._window_problem(0, lam), sols[near])
+        sol, report = self._start(lam, extra_starts=(sols[near],))
         self.lam = lam
         info["natural_scale"] = lam_nat
         info["path"] = [dataclasses.asdict(p) for p in sorted(path, key=lambda p: p.lam)]
@@ -689,6 +702,7 @@ class MovingHorizonEstimator:
                 "initial_load": self.initial_load,
                 "initial_deflection": self.initial_deflection,
                 "score": self.start_report.sign_score,
+                "determined": bool(self.start_report.sign_score >= SIGN_MARGIN),
                 "candidates": self.start_report.candidates,
             },
             "statuses": sorted({w["status"] for w in self._windows}),

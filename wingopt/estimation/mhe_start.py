@@ -146,6 +146,7 @@ def start_window(
     shapes: int = 3,
     amplitudes: int = 16,
     keep: int = 2,
+    extra_starts: tuple = (),
 ) -> tuple[WindowSolution, StartReport]:
     """Solve the first window from scratch: scan, coarse solve, fine solve, orient by the prior.
 
@@ -166,6 +167,9 @@ def start_window(
         Scan points per sign.
     keep : int
         Distinct coarse minima refined on the full problem.
+    extra_starts : tuple of ndarray
+        Further full-problem starting points (e.g. a continuation from another lambda), refined
+        and compared with the scan's candidates.
     """
     red = problem.reduced
     m = red.m
@@ -216,7 +220,7 @@ def start_window(
     candidates = []
     fine_it = 0
     best = None
-    for _, th in distinct[:keep]:
+    for th in [th for _, th in distinct[:keep]] + [np.asarray(x, dtype=float) for x in extra_starts]:
         sol = solver.solve(problem, th)
         fine_it += sol.iterations
         theta, score = _orient(red, sol.theta, prior)
