@@ -182,3 +182,18 @@ def test_help_has_an_example(capsys):
         main(["identify", "--help"])
     text = capsys.readouterr().out
     assert "wingopt identify membrane --load L1" in text and "PERCENT" in text
+
+
+def test_identify_with_the_tuned_jekf(small_file, tmp_path, capsys):
+    out = tmp_path / "jekf"
+    argv = ["identify", str(small_file), "--load", "L1", "--noise", "1", "--method", "jekf-tuned", "--no-plots"]
+    assert main(argv + ["--truth-mesh", "25x13", "--t-end", "0.3", "--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["method"] == "jekf-tuned" and summary["load_error"] < 0.1
+    assert (out / "lift.csv").exists()
+
+
+def test_options_of_the_mhe_only_are_refused_for_the_jekf(small_file, tmp_path, capsys):
+    argv = ["identify", str(small_file), "--load", "L1", "--method", "jekf", "--backend", "ipopt"]
+    assert main(argv + ["--out", str(tmp_path / "x")]) == 2
+    assert "--method mhe only" in capsys.readouterr().err
