@@ -223,8 +223,12 @@ def _plots(tmp, result, model, case, X, Y, Pg, summary) -> None:
 
     truth = case.load(X, Y) if case is not None else None
     title = f"{summary.get('load_case', 'data')} · {summary['method']}"
+    first = None
+    if result.method == "mhe":
+        first = float(result.t[min(result.info["window"], result.t.size) - 1] - result.t[0])
     plot_load_field(tmp / "load_field.png", X, Y, Pg, truth, title)
-    plot_lift(tmp / "lift.png", result.t, result.lift, result.lift_std, case.true_lift if case else None, title)
+    true_lift = case.true_lift if case else None
+    plot_lift(tmp / "lift.png", result.t, result.lift, result.lift_std, true_lift, title, first)
     if case is not None:
         # Error histories on a subsample of the times (each needs two integrals on the truth mesh).
         idx = np.unique(np.linspace(0, result.t.size - 1, 41).astype(int))
@@ -234,7 +238,7 @@ def _plots(tmp, result, model, case, X, Y, Pg, summary) -> None:
             kt = int(np.argmin(np.abs(t_case - result.t[k])))
             le.append(case.load_error(load_field(result, model, k)))
             de.append(case.deflection_error(model.field(result.deflection[k]), kt))
-        plot_errors(tmp / "errors.png", result.t[idx], np.array(le), np.array(de), title)
+        plot_errors(tmp / "errors.png", result.t[idx], np.array(le), np.array(de), title, first)
 
 
 def _print(summary: dict, args) -> None:

@@ -42,12 +42,28 @@ def plot_load_field(
     return Path(path)
 
 
+def _first_window(ax, first_window_s: float | None) -> None:
+    if first_window_s:
+        ax.axvspan(0, first_window_s, color="0.85", alpha=0.6, lw=0, label="first window (smoothed, known at its end)")
+
+
 def plot_lift(
-    path: Path, t: np.ndarray, lift: np.ndarray, std: np.ndarray | None = None, truth: float | None = None, title=""
+    path: Path,
+    t: np.ndarray,
+    lift: np.ndarray,
+    std: np.ndarray | None = None,
+    truth: float | None = None,
+    title: str = "",
+    first_window_s: float | None = None,
 ) -> Path:
-    """Lift history with its 1-sigma band and the true lift when known."""
+    """Lift history with its 1-sigma band and the true lift when known.
+
+    ``first_window_s`` shades the first MHE window, whose samples carry the first window's
+    (smoothed) estimate, available only at the window's end.
+    """
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 3.4))
+    _first_window(ax, first_window_s)
     ax.plot(t, lift, color="C0", label="estimate")
     if std is not None and np.any(np.isfinite(std)):
         ax.fill_between(t, lift - std, lift + std, color="C0", alpha=0.25, label="1-sigma band")
@@ -65,10 +81,18 @@ def plot_lift(
     return Path(path)
 
 
-def plot_errors(path: Path, t: np.ndarray, load_error: np.ndarray, deflection_error: np.ndarray, title="") -> Path:
+def plot_errors(
+    path: Path,
+    t: np.ndarray,
+    load_error: np.ndarray,
+    deflection_error: np.ndarray,
+    title: str = "",
+    first_window_s: float | None = None,
+) -> Path:
     """Relative L2 errors of load and deflection over time (log scale)."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 3.4))
+    _first_window(ax, first_window_s)
     ax.semilogy(t, load_error, label="load")
     ax.semilogy(t, deflection_error, label="deflection")
     ax.set_xlabel("t (s)")
