@@ -423,13 +423,14 @@ class MovingHorizonEstimator:
             extra_starts=extra_starts,
         )
 
-    def natural_lambda(self) -> float:
+    def natural_lambda(self) -> float | None:
         """Scale of lambda at which roughness and data information balance along the smoothest shape.
 
         ``lambda_nat = (v^T H_data v) / (v^T S^-1 v)`` for the modal forces ``v`` of the smoothest
-        load shape, with ``H_data`` the data's Gauss–Newton matrix at the start-up estimate.
+        load shape, with ``H_data`` the data's Gauss–Newton matrix at the start-up estimate; the
+        lambda grid is relative to it. ``None`` when lambda was given (no path was computed).
         """
-        return self._lam_nat
+        return getattr(self, "_lam_nat", None)
 
     def _choose_lambda(self):
         """Lambda path on the first window (continuation from the start-up) and the data-only rule."""
