@@ -222,6 +222,13 @@ class MovingHorizonEstimator:
         self.solver = make_solver(s.backend, s.qp_solver, max_iterations=s.max_iterations, tolerance=s.tolerance)
         # The start-up's coarse problem is tiny and always solved with the fast dense solver.
         self._coarse_solver = NumpySolver(max_iterations=200, tolerance=s.tolerance)
+        # Warm-started windows sit next to their optimum, where the exact Hessian buys nothing
+        # (measured: the same 2 iterations per window) but costs a third of the time.
+        self._step_solver = (
+            NumpySolver(max_iterations=s.max_iterations, tolerance=s.tolerance, hessian="gauss-newton")
+            if s.backend == "numpy"
+            else self.solver
+        )
         self._ready = False
 
     # -- setup -------------------------------------------------------------------------------
@@ -658,7 +665,7 @@ class MovingHorizonEstimator:
         theta0 = np.concatenate([x_new, U.ravel()])
         self.start += shift
         problem = self._window_problem(self.start, self.lam)
-        sol = self.solver.solve(problem, theta0)
+        sol = self._step_solver.solve(problem, theta0)
         self._accept(sol)
         return True
 

@@ -120,7 +120,9 @@ class _LevenbergMarquardt(WindowSolver):
         cost = problem.cost(D * xi)
         if not np.isfinite(cost):
             raise SolverError(self.name, "non-finite cost at the start", _HINT)
-        mu, nu = 1e-3, 2.0
+        # Start as Gauss–Newton: warm-started windows are next to their optimum; a failed step raises
+        # the damping quickly (x2, x4, ...).
+        mu, nu = 1e-8, 2.0
         raw = "maximum iterations reached"
         it = 0
         while it < self.max_iterations:
@@ -195,8 +197,11 @@ class NumpySolver(_LevenbergMarquardt):
 class CvxpySolver(_LevenbergMarquardt):
     """Gauss–Newton/LM steps as convex QPs, built once per window shape with CVXPY Parameters.
 
-    Each step minimises ``||R xi_new - c||^2`` (``R^T R`` = damped Gauss–Newton matrix,
-    ``c = R xi + R^-T b``) subject to the bounds, so the QP is the exact LM subproblem.
+    The LM subproblem ``min d^T H d - 2 b^T d`` s.t. ``lo <= A (xi + d) <= hi`` is passed in whitened
+    form: with ``H = L L^T`` and ``z = L^T d`` it reads ``min ||z - L^-1 b||^2`` s.t.
+    ``lo - A xi <= (A L^-T) z <= hi - A xi``. It is the same QP, but its objective is perfectly
+    conditioned, which the interior-point and ADMM solvers need: the arrival cost makes ``H`` span
+    ten or more decades.
     """
 
     name = "cvxpy"
@@ -221,49 +226,50 @@ class CvxpySolver(_LevenbergMarquardt):
         key = (n, nb)
         if key in self._cache:
             return self._cache[key]
-        x = cp.Variable(n)
-        R = cp.Parameter((n, n))
+        z = cp.Variable(n)
         c = cp.Parameter(n)
         cons = []
         extra = {}
         if nb:
-            Ab = cp.Parameter((nb, n))
+            M = cp.Parameter((nb, n))
             lo = cp.Parameter(nb)
             hi = cp.Parameter(nb)
-            cons = [Ab @ x >= lo, Ab @ x <= hi]
-            extra = {"A": Ab, "lo": lo, "hi": hi}
-        prob = cp.Problem(cp.Minimize(cp.sum_squares(R @ x - c)), cons)
-        self._cache[key] = (prob, x, R, c, extra)
+            cons = [M @ z >= lo, M @ z <= hi]
+            extra = {"M": M, "lo": lo, "hi": hi}
+        prob = cp.Problem(cp.Minimize(cp.sum_squares(z - c)), cons)
+        self._cache[key] = (prob, z, c, extra)
         return self._cache[key]
 
     def _step(self, problem, xi, Hs, bs, mu):
         import cvxpy as cp
+        import scipy.linalg as sla
 
         Hd = Hs + mu * np.diag(np.maximum(np.diag(Hs), 1e-12))
         L = _cholesky(Hd)
         if L is None:
             return None
-        prob, x, R, c, extra = self._build(problem)
-        R.value = L.T
-        # ||L^T x_new - c||^2 = (x_new - xi)^T Hd (x_new - xi) - 2 b^T (x_new - xi) + const
-        c.value = L.T @ xi + np.linalg.solve(L, bs)
+        prob, z, c, extra = self._build(problem)
+        c.value = sla.solve_triangular(L, bs, lower=True)
         if extra:
             D = problem.scale
+            As = problem.bounds.A * D[None, :]
+            # (A L^-T) = (L^-1 A^T)^T
+            extra["M"].value = sla.solve_triangular(L, As.T, lower=True).T
+            Ax = As @ xi
             lim = 1e30
-            extra["A"].value = problem.bounds.A * D[None, :]
-            extra["lo"].value = np.maximum(problem.bounds.lo, -lim)
-            extra["hi"].value = np.minimum(problem.bounds.hi, lim)
+            extra["lo"].value = np.maximum(problem.bounds.lo, -lim) - Ax
+            extra["hi"].value = np.minimum(problem.bounds.hi, lim) - Ax
         try:
             if self.qp_solver == "clarabel":
                 prob.solve(solver=cp.CLARABEL)
             else:
-                prob.solve(solver=cp.OSQP, eps_abs=1e-9, eps_rel=1e-9, max_iter=20000, polishing=True)
+                prob.solve(solver=cp.OSQP, eps_abs=1e-10, eps_rel=1e-10, max_iter=50000, polishing=True)
         except cp.SolverError as exc:
             raise SolverError(self.label, f"solver error: {exc}", _HINT) from None
         status = status_from(self.qp_solver, prob.status)
-        if not status.ok or x.value is None:
+        if not status.ok or z.value is None:
             raise SolverError(self.label, str(prob.status), _HINT)
-        return np.asarray(x.value) - xi
+        return sla.solve_triangular(L.T, np.asarray(z.value), lower=False)
 
     def solve(self, problem: WindowProblem, theta0: np.ndarray) -> WindowSolution:
         sol = super().solve(problem, theta0)
