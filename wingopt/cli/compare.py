@@ -158,7 +158,12 @@ def run(args) -> int:
         report["sign_and_band"] = rows
         sections.append(_sign_markdown(rows, args.sign_seeds))
     if args.consistency:
-        rows = consistency_study(problem, mhe_settings=settings, truth_nodes=truth, progress=print)
+        cache = out / "consistency.json"
+        if args.resume and cache.exists():
+            rows = json.loads(cache.read_text())
+        else:
+            rows = consistency_study(problem, mhe_settings=settings, truth_nodes=truth, progress=print)
+            cache.write_text(json.dumps(to_jsonable(rows), indent=2) + "\n")
         report["consistency"] = rows
         sections.append(_consistency_markdown(rows))
     report["wall_s"] = time.perf_counter() - t0
