@@ -197,3 +197,21 @@ def test_options_of_the_mhe_only_are_refused_for_the_jekf(small_file, tmp_path, 
     argv = ["identify", str(small_file), "--load", "L1", "--method", "jekf", "--backend", "ipopt"]
     assert main(argv + ["--out", str(tmp_path / "x")]) == 2
     assert "--method mhe only" in capsys.readouterr().err
+
+
+def test_data_at_another_sample_rate(small_file, tmp_path, capsys):
+    """DIC at 300 Hz: the estimator uses the data's own sample period."""
+    from wingopt.membrane import MembraneModel, add_noise, bubble, load_case, simulate_response
+
+    problem = load_problem(small_file)
+    truth = MembraneModel.from_problem(problem, (25, 13))
+    traj = simulate_response(truth, load_case("L1", 0.14, 0.07), t_end=1.0, dt=1 / 300, z0=bubble(0.14, 0.07))
+    y, _ = add_noise(traj.outputs, 0.01, 0)
+    data = tmp_path / "dic300.csv"
+    write_csv(data, traj.t, y, problem.sensor_names)
+    out = tmp_path / "dic"
+    argv = ["identify", str(small_file), "--data", str(data), "--out", str(out), "--json", "--no-plots"]
+    assert main(argv + ["--window", "60", "--stride", "20", "--modes", "20"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["data"]["dt_s"] == pytest.approx(1 / 300, rel=1e-3)  # times written to 1 us
+    assert summary["lift_N"] == pytest.approx(truth.lift(truth.project(load_case("L1", 0.14, 0.07))), rel=0.03)
