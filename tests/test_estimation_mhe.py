@@ -148,7 +148,14 @@ def test_jacobian_and_exact_hessian_match_finite_differences(small_estimator):
 
 # -- solvers --------------------------------------------------------------------------------------
 @pytest.mark.parametrize(
-    "backend,kw", [("numpy", {}), ("cvxpy", {"qp_solver": "clarabel"}), ("cvxpy", {"qp_solver": "osqp"}), ("ipopt", {})]
+    "backend,kw",
+    [
+        ("numpy", {}),
+        ("cvxpy", {"qp_solver": "clarabel"}),
+        ("cvxpy", {"qp_solver": "osqp"}),
+        ("ipopt", {}),
+        ("ipopt", {"hessian": "ad"}),
+    ],
 )
 def test_backends_agree_on_one_window(small_estimator, backend, kw):
     est = small_estimator
