@@ -78,7 +78,14 @@ def register(sub, common) -> None:
     p.add_argument("--same-mesh", action="store_true", help="seed protocol: simulate the truth on the estimator's mesh")
     p.add_argument("--t-end", type=float, default=1.0, help="simulated duration, s (default 1)")
     p.add_argument("--mesh", help="estimator mesh NXxNY (default: the problem's)")
-    p.add_argument("--method", choices=("mhe", "jekf", "jekf-tuned"), default="mhe", help="estimator (default mhe)")
+    p.add_argument(
+        "--method",
+        choices=("mhe", "jekf", "jekf-tuned"),
+        default="mhe",
+        help="estimator: mhe (default); jekf = the seed's filter (200 Pa prior, R = 1e-4, lambda tuned on the "
+        "noise-free truth as the seed did, a default lambda on measured data); jekf-tuned = zero initial load, "
+        "lambda from the data",
+    )
     g = p.add_argument_group("moving-horizon estimator")
     g.add_argument("--backend", choices=("numpy", "cvxpy", "ipopt"), default="numpy", help="window solver")
     g.add_argument("--qp-solver", choices=("clarabel", "osqp"), default="clarabel", help="QP solver of cvxpy")
