@@ -167,6 +167,7 @@ def run(args) -> int:
         report["consistency"] = rows
         sections.append(_consistency_markdown(rows))
     report["wall_s"] = time.perf_counter() - t0
+    sections.insert(0, _checklist_markdown(report))
     text = "\n\n".join(s for s in sections if s) + "\n"
     (out / "summary.json").write_text(json.dumps(to_jsonable(report), indent=2) + "\n")
     (out / "comparison.md").write_text(text)
@@ -187,6 +188,64 @@ def _doc_header(args) -> str:
         "see [estimation.md](estimation.md) for the methods. Lift error is |lift - true| / ∫|P| "
         "(L2 has no net lift). The seed's numbers are its same-mesh JEKF (spec §5).\n\n"
     )
+
+
+MHE_LIMITS = {("L1", 0.01): 0.02, ("L1", 0.05): 0.03, ("L2", 0.01): 0.04, ("L2", 0.05): 0.06}
+"""Issue 5's targets for the MHE's mean final load error (L3: 0.35 in the fixed-edge space)."""
+
+
+def _checklist_markdown(report: dict) -> str:
+    """Issue 5's "Must show" items with the measured values (only those this run covers)."""
+    lines = ["### Must-show checklist (issue 5)", "", "| item | target | measured | met |", "|---|---|---|---|"]
+
+    def add(item, target, measured, ok):
+        lines.append(f"| {item} | {target} | {measured} | {'yes' if ok else 'NO'} |")
+
+    rows = report.get("comparison", [])
+    mhe = {(r["load"], r["noise"]): r for r in rows if r["method"] == "mhe"}
+    for (load, noise), limit in MHE_LIMITS.items():
+        if (load, noise) in mhe:
+            v = mhe[(load, noise)]["load_error"]["mean"]
+            add(f"MHE mean load error {load} {100 * noise:g} %", f"<= {limit}", f"{v:.4f}", v <= limit)
+    for noise in (0.01, 0.05):
+        if ("L3", noise) in mhe:
+            v = mhe[("L3", noise)]["load_error"]["mean"]
+            add(f"MHE mean load error L3 {100 * noise:g} % (fixed edges)", "<= 0.35", f"{v:.4f}", v <= 0.35)
+    others = {(r["load"], r["noise"], r["method"]): r for r in rows if r["method"] != "mhe"}
+    for (load, noise), r in sorted(mhe.items()):
+        rivals = [o for (ld, nz, _), o in others.items() if ld == load and nz == noise]
+        if rivals:
+            best = min(o["load_error"]["mean"] for o in rivals)
+            v = r["load_error"]["mean"]
+            add(
+                f"MHE better than both JEKFs, {load} {100 * noise:g} %",
+                "< best JEKF",
+                f"{v:.4f} vs {best:.4f}",
+                v < best,
+            )
+    for (load, noise), r in sorted(mhe.items()):
+        if noise <= 0.011:
+            v = r["lift_error"]["max"]
+            add(f"MHE lift error {load} 1 % (worst seed)", "<= 0.05 of ∫\\|P\\|", f"{v:.4f}", v <= 0.05)
+    ratios = [r["oracle_ratio_max"] for r in mhe.values() if "oracle_ratio_max" in r]
+    if ratios:
+        add("MHE load error / oracle-lambda error", "<= 1.5 every case", f"max {max(ratios):.2f}", max(ratios) <= 1.5)
+    for r in report.get("sign_and_band", []):
+        add(
+            f"sign right, {r['load']}, {r['seeds']} seeds",
+            "all",
+            f"{r['sign_ok']}/{r['seeds']}",
+            r["sign_ok"] == r["seeds"],
+        )
+        if r["load"] == "L1" and r["covered"] is not None:
+            frac = r["covered"] / r["seeds"]
+            add("lift band coverage, L1 5 %", "60–75 %", f"{r['covered']}/{r['seeds']}", 0.6 <= frac <= 0.75)
+    cons = report.get("consistency")
+    if cons:
+        errs = [c["load_error_mean"] for c in cons]
+        ok = all(b < a for a, b in zip(errs, errs[1:]))
+        add("consistency error falls with sensors", "decreasing", " > ".join(f"{e:.3f}" for e in errs), ok)
+    return "\n".join(lines) if len(lines) > 4 else ""
 
 
 def _oracle_markdown(summary) -> str:

@@ -352,7 +352,7 @@ def summarize(records: Sequence[CaseRecord]) -> list[dict]:
 
 
 def _fmt(stat: dict) -> str:
-    return f"{stat['mean']:.3g} ({stat['min']:.2g}–{stat['max']:.2g})"
+    return f"{stat['mean']:.4g} ({stat['min']:.3g}–{stat['max']:.3g})"
 
 
 def comparison_markdown(summary: Sequence[dict], title: str = "") -> str:
