@@ -215,3 +215,19 @@ def test_data_at_another_sample_rate(small_file, tmp_path, capsys):
     summary = json.loads(capsys.readouterr().out)
     assert summary["data"]["dt_s"] == pytest.approx(1 / 300, rel=1e-3)  # times written to 1 us
     assert summary["lift_N"] == pytest.approx(truth.lift(truth.project(load_case("L1", 0.14, 0.07))), rel=0.03)
+
+
+def test_compare_command_writes_records_and_resumes(small_file, tmp_path, capsys):
+    out = tmp_path / "cmp"
+    argv = ["compare", str(small_file), "--loads", "L1", "--noise", "5", "--seeds", "1", "--methods", "mhe"]
+    argv += ["--no-oracle", "--truth-mesh", "25x13", "--out", str(out), "--doc", str(tmp_path / "doc.md")]
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "| L1 | 5 % | mhe |" in text and "MHE mean load error L1 5 %" in text
+    recs = (out / "records.jsonl").read_text().splitlines()
+    assert len(recs) == 1 and json.loads(recs[0])["method"] == "mhe"
+    assert (tmp_path / "doc.md").read_text().startswith("# Load identification")
+    # Resuming recomputes nothing.
+    assert main(argv + ["--resume"]) == 0
+    assert len((out / "records.jsonl").read_text().splitlines()) == 1
+    assert main(["compare", str(small_file), "--methods", "kalman", "--out", str(out)]) == 2
