@@ -1,0 +1,148 @@
+"""``wingopt morph``: morph the plate into a Table 5.1 shape (LQR/LQG baseline or QP/MPC).
+
+Writes ``summary.json``, ``voltages.csv``, ``history.csv`` and figures into ``--out`` atomically
+(a failed run leaves no half-written directory). With ``--method qp`` the LQR saturated at the
+same limits runs too and the figures compare the two.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+
+from wingopt.errors import InputError
+from wingopt.results import to_jsonable
+
+ORDER = 20
+
+EXAMPLE = """voltage limits: --method lqr saturates at --vmin/--vmax when given and is unlimited otherwise
+  (the seed's controller); --method qp defaults to the problem's [actuators] (-500/+1500 V) and also
+  runs the LQR saturated at the same limits for comparison.
+
+examples:
+  wingopt morph plate --shape twist --method lqr --out runs/twist-lqr
+  wingopt morph plate --shape bending --method lqr --vmin -500 --vmax 1500 --out runs/bend-sat
+  wingopt morph plate --shape camber --method qp --horizon 30 --solver osqp --out runs/camber-qp --json
+  wingopt morph plate --shape twist --method lqr --mesh 7x31 --t-end 4 --out runs/twist-7x31"""
+
+
+def register(sub, common) -> None:
+    p = sub.add_parser(
+        "morph",
+        parents=[common],
+        help="morph the plate wing into twist, camber or bending (LQR/LQG or QP)",
+        description="Closed-loop morphing of the piezo-actuated plate wing from rest into a Table 5.1 shape, "
+        "simulated on the full-order FE model with the controller sampling the nine patch sensors.",
+        epilog=EXAMPLE,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("problem", help="problem file (.toml) or built-in name (plate)")
+    p.add_argument("--shape", required=True, help="target shape: twist, camber or bending")
+    p.add_argument("--method", default="qp", help="controller: qp (default) or lqr")
+    p.add_argument("--vmin", type=float, help="lowest patch voltage, V")
+    p.add_argument("--vmax", type=float, help="highest patch voltage, V")
+    p.add_argument("--t-end", type=float, default=2.0, help="duration, s (default 2)")
+    p.add_argument("--mesh", help="nodes in x and y, e.g. 13x61 (default: the problem's)")
+    p.add_argument("--period", type=float, default=0.01, help="control period, s (default 0.01 = 100 Hz)")
+    p.add_argument("--sensor-noise", type=float, default=0.0, help="patch-sensor noise std, sensor units (m)")
+    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    p.add_argument("--plant", choices=("auto", "dense", "modal"), default="auto", help="full-order plant model")
+    g = p.add_argument_group("lqr")
+    g.add_argument("--r", type=float, help="LQR input weight R = r I, V^-2 (default 1e-14)")
+    q = p.add_argument_group("qp")
+    q.add_argument("--horizon", type=int, help="prediction horizon, steps")
+    q.add_argument("--solver", help="QP backend: clarabel, osqp, ipopt or casadi-qp")
+    q.add_argument("--mode", help="closed-loop (receding horizon) or open-loop")
+    q.add_argument("--no-compare", action="store_true", help="qp: skip the saturated-LQR comparison run")
+    p.add_argument("--no-plots", action="store_true", help="skip the figures")
+    p.add_argument("--out", required=True, help="output directory (replaced atomically)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    p.set_defaults(func=run)
+
+
+def _options(args) -> dict:
+    lqr_opts = {"r": args.r}
+    qp_opts = {"horizon": args.horizon, "solver": args.solver, "mode": args.mode}
+    if args.method == "lqr":
+        given = [f"--{k}" for k, v in qp_opts.items() if v is not None]
+        if given:
+            raise InputError(f"{', '.join(given)}: apply to --method qp only")
+        return {k: v for k, v in lqr_opts.items() if v is not None}
+    if args.r is not None:
+        raise InputError("--r: applies to --method lqr only")
+    if args.horizon is not None and args.horizon < 1:
+        raise InputError(f"horizon = {args.horizon!r}: expected a positive number of steps")
+    return {k: v for k, v in qp_opts.items() if v is not None}
+
+
+def _check(args) -> None:
+    from wingopt.control.morph import METHODS
+    from wingopt.plate.shapes import SHAPES
+
+    if args.shape not in SHAPES:
+        raise InputError(f"shape = {args.shape!r}: expected one of {', '.join(SHAPES)}")
+    if args.method not in METHODS:
+        raise InputError(f"method = {args.method!r}: expected one of {', '.join(METHODS)}")
+    for name in ("vmin", "vmax", "t_end", "period", "sensor_noise"):
+        v = getattr(args, name)
+        if v is not None and not math.isfinite(v):
+            raise InputError(f"{name.replace('_', '-')} = {v!r}: expected a finite number")
+    if args.vmin is not None and args.vmax is not None and not args.vmin < args.vmax:
+        raise InputError(f"vmin = {args.vmin!r}, vmax = {args.vmax!r}: expected vmin < vmax")
+    if not args.t_end > 0:
+        raise InputError(f"t-end = {args.t_end!r}: expected a positive duration (s)")
+    if not args.period > 0 or args.period > args.t_end:
+        raise InputError(f"period = {args.period!r}: expected a positive control period no longer than --t-end")
+    if args.sensor_noise < 0:
+        raise InputError(f"sensor-noise = {args.sensor_noise!r}: expected a standard deviation >= 0")
+
+
+def run(args) -> int:
+    from wingopt.control.morph import load_factory, morph, resolve_limits, write_morph_outputs
+    from wingopt.plate import PlateModel
+    from wingopt.problem import load_problem, parse_mesh
+    from wingopt.results.writer import check_writable
+
+    check_writable(args.out)
+    _check(args)
+    options = _options(args)
+    problem = load_problem(args.problem)
+    if problem.kind != "plate":
+        raise InputError(f"problem = {args.problem!r}: morph needs a plate problem, got kind {problem.kind!r}")
+    load_factory(args.method)  # fail early (e.g. qp not installed) before building anything
+    nodes = parse_mesh(args.mesh) if args.mesh else None
+    model = PlateModel.from_problem(problem, nodes)
+    common = dict(
+        t_end=args.t_end,
+        sensor_noise=args.sensor_noise,
+        seed=args.seed,
+        period=args.period,
+        plant=args.plant,
+        model=model,
+    )
+    result = morph(problem, args.shape, args.method, vmin=args.vmin, vmax=args.vmax, **common, **options)
+    compare = None
+    if args.method != "lqr" and not args.no_compare:
+        lo, hi = resolve_limits(problem, args.method, args.vmin, args.vmax)
+        compare = morph(problem, args.shape, "lqr", vmin=lo, vmax=hi, **common)
+    summary = write_morph_outputs(result, args.out, compare, plots=not args.no_plots)
+    _print(summary, args)
+    return 0
+
+
+def _print(summary: dict, args) -> None:
+    if args.json:
+        print(json.dumps(to_jsonable(summary)))
+        return
+    tip = summary["tip_corners_m"]
+    lo, hi = summary["peak_voltage_V"]
+    line = (
+        f"{summary['shape']} / {summary['method']}: shape error {summary['shape_error']:.4f}, "
+        f"tip corners {100 * tip[0]:+.2f} / {100 * tip[1]:+.2f} cm, voltages {lo:+.0f} .. {hi:+.0f} V, "
+        f"{summary['wall_s']:.1f} s"
+    )
+    cmp = summary.get("compare_with")
+    if cmp:
+        line += f"; saturated lqr: shape error {cmp['shape_error']:.4f}"
+    print(line + f" -> {args.out}")

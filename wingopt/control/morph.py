@@ -1,0 +1,260 @@
+"""Morph the plate into a Table 5.1 shape with a chosen controller: the ``wingopt morph`` engine.
+
+``morph(problem, shape, method)`` builds the model, the target and the controller of ``method``
+(:data:`METHODS`, ``"module:factory"`` imported lazily), runs :func:`simulate_closed_loop` on the
+full-order plant and returns a :class:`MorphResult`; :func:`write_morph_outputs` writes the spec §7
+outputs (``summary.json``, ``voltages.csv``, figures) atomically.
+
+Voltage limits: ``method="lqr"`` saturates at ``vmin``/``vmax`` when given (each side on its own)
+and is unlimited otherwise (the seed's controller); every other method defaults to the problem's
+``[actuators]`` limits (-500/+1500 V for the plate). The factory receives finite limits as arrays
+(one per patch) or ``-inf``/``+inf`` when unlimited, and the harness clips to the same limits.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from wingopt.control.closed_loop import DEFAULT_PERIOD, ClosedLoopResult, check_limits, simulate_closed_loop
+from wingopt.errors import InputError
+
+__all__ = ["METHODS", "MorphResult", "morph", "load_factory", "write_morph_outputs", "resolve_limits"]
+
+log = logging.getLogger(__name__)
+
+METHODS = {
+    "lqr": "wingopt.control.tracking:make_lqr_controller",
+    "qp": "wingopt.control.mpc:make_qp_controller",
+}
+"""Controller factories by method name, ``"module:function"`` (imported on first use).
+
+Every factory has the signature ``make_<method>_controller(model, target, *, vmin, vmax, period,
+**options) -> Controller`` (see :class:`~wingopt.control.closed_loop.Controller`).
+"""
+
+
+def load_factory(method: str):
+    """The factory of ``method``; a clear :class:`InputError` if unknown or not installed."""
+    if method not in METHODS:
+        raise InputError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
+    module, func = METHODS[method].split(":")
+    try:
+        mod = importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        if exc.name and module.startswith(exc.name):
+            raise InputError(f"method = {method!r}: not available in this version ({module} is missing)") from None
+        raise
+    factory = getattr(mod, func, None)
+    if factory is None:
+        raise InputError(f"method = {method!r}: {module} has no {func}()")
+    return factory
+
+
+def resolve_limits(problem, method: str, vmin=None, vmax=None) -> tuple[float | None, float | None]:
+    """Voltage limits of a run: ``(vmin, vmax)`` with ``None`` for an unlimited side.
+
+    ``lqr``: as given (``None``: unlimited, the seed's controller). Other methods: the problem's
+    ``[actuators]`` limits where not given.
+    """
+    if method != "lqr":
+        act = getattr(problem, "actuators", None)
+        if vmin is None and act is not None:
+            vmin = act.vmin
+        if vmax is None and act is not None:
+            vmax = act.vmax
+    for name, v in (("vmin", vmin), ("vmax", vmax)):
+        if v is not None and not np.isfinite(v):
+            raise InputError(f"{name} = {v!r}: expected a finite voltage (V); leave it out for no limit")
+    if vmin is not None and vmax is not None and not vmin < vmax:
+        raise InputError(f"vmin = {vmin!r}, vmax = {vmax!r}: expected vmin < vmax")
+    return (None if vmin is None else float(vmin)), (None if vmax is None else float(vmax))
+
+
+@dataclass(eq=False)
+class MorphResult:
+    """One morphing run.
+
+    Attributes
+    ----------
+    method, shape : str
+    model : PlateModel
+    target : ndarray (n,)
+        Target deflection coefficients ``z_d`` (L2 projection of the Table 5.1 shape).
+    closed_loop : ClosedLoopResult
+    wall_s : float
+        Wall time of the whole run (model, controller design, simulation).
+    vmin, vmax : float or None
+        Limits the run used (``None``: unlimited).
+    extras : dict
+        Method-specific numbers (e.g. ``static_optimum_error`` of the QP), merged into :meth:`summary`.
+    """
+
+    method: str
+    shape: str
+    model: object
+    target: np.ndarray
+    closed_loop: ClosedLoopResult
+    wall_s: float
+    vmin: float | None = None
+    vmax: float | None = None
+    t_end: float = 2.0
+    options: dict = field(default_factory=dict)
+    extras: dict = field(default_factory=dict)
+
+    def summary(self) -> dict:
+        """The spec §7 summary (plus run settings and settling information)."""
+        cl = self.closed_loop
+        prob = self.model.problem
+        lo, hi = cl.peak_voltage
+        out = {
+            "problem": getattr(prob, "name", "plate"),
+            "method": self.method,
+            "shape": self.shape,
+            "mesh": list(prob.nodes),
+            "dofs": int(self.model.n),
+            "shape_error": cl.final_shape_error,
+            "tip_corners_m": [float(v) for v in cl.final_tip],
+            "target_tip_corners_m": [float(v) for v in self.model.tip_corners(self.target)],
+            "voltages_final_V": [float(v) for v in cl.final_voltages],
+            "patches": list(self.model.patch_names),
+            "peak_voltage_V": [lo, hi],
+            "vmin_V": self.vmin,
+            "vmax_V": self.vmax,
+            "t_end_s": self.t_end,
+            "period_s": cl.period,
+            "plant_dt_s": cl.plant_dt,
+            "plant": cl.plant,
+            "sensor_noise": cl.sensor_noise,
+            "settling_time_s": cl.settling_time(),
+            "settling_band": 0.02,
+            "tip_overshoot": [float(v) for v in cl.tip_overshoot()],
+            "shape_error_at": {
+                f"{t:g}": float(np.interp(t, cl.t, cl.shape_error)) for t in (0.5, 1.0, 2.0) if t <= cl.t[-1]
+            },
+            "controller_step_s_median": float(np.median(cl.step_seconds)) if cl.step_seconds.size else 0.0,
+            "wall_s": self.wall_s,
+            "options": dict(self.options),
+        }
+        out.update(self.extras)
+        return out
+
+
+def morph(
+    problem,
+    shape: str,
+    method: str = "qp",
+    *,
+    vmin: float | None = None,
+    vmax: float | None = None,
+    t_end: float = 2.0,
+    nodes: tuple[int, int] | None = None,
+    sensor_noise: float = 0.0,
+    seed: int = 0,
+    period: float = DEFAULT_PERIOD,
+    plant: str = "auto",
+    model=None,
+    **options,
+) -> MorphResult:
+    """Morph ``problem``'s plate into ``shape`` with ``method``, from rest, for ``t_end`` s.
+
+    Parameters
+    ----------
+    problem : PlateProblem
+    shape : {"twist", "camber", "bending"}
+    method : {"qp", "lqr"}
+    vmin, vmax : float, optional
+        Voltage limits (V); see :func:`resolve_limits` for the defaults per method.
+    t_end : float
+        Duration (s).
+    nodes : (int, int), optional
+        Mesh (default: the problem's).
+    sensor_noise : float
+        Standard deviation of the patch-sensor noise (sensor units, m).
+    seed : int
+        Noise seed.
+    period : float
+        Control period (s), default 10 ms.
+    plant : {"auto", "dense", "modal"}
+        Full-order plant (see :func:`~wingopt.control.closed_loop.make_plant`).
+    model : PlateModel, optional
+        A model already built for ``problem`` (and ``nodes``), to share between runs.
+    **options
+        Passed to the method's factory (e.g. ``r`` for lqr; ``horizon, solver, mode`` for qp).
+    """
+    from wingopt.plate import PlateModel
+
+    t0 = time.perf_counter()
+    if getattr(problem, "kind", None) != "plate":
+        raise InputError(f"problem: morph needs a plate problem, got kind {getattr(problem, 'kind', None)!r}")
+    from wingopt.plate.shapes import SHAPES
+
+    if shape not in SHAPES:
+        raise InputError(f"shape = {shape!r}: expected one of {', '.join(SHAPES)}")
+    if not (np.isfinite(t_end) and t_end > 0):
+        raise InputError(f"t_end = {t_end!r}: expected a positive duration (s)")
+    factory = load_factory(method)
+    lo, hi = resolve_limits(problem, method, vmin, vmax)
+    if model is None:
+        model = PlateModel.from_problem(problem, nodes)
+    check_limits(lo, hi, model.n_inputs)
+    target = model.target(shape)
+    m = model.n_inputs
+    flo = np.full(m, -np.inf) if lo is None else np.full(m, lo)
+    fhi = np.full(m, np.inf) if hi is None else np.full(m, hi)
+    controller = factory(model, target, vmin=flo, vmax=fhi, period=period, **options)
+    cl = simulate_closed_loop(
+        model, controller, target, t_end=t_end, sensor_noise=sensor_noise, seed=seed, vmin=lo, vmax=hi, plant=plant
+    )
+    extras = dict(getattr(controller, "extras", {}) or {})
+    wall = time.perf_counter() - t0
+    log.info("morph %s/%s: shape error %.4f in %.2f s", shape, method, cl.final_shape_error, wall)
+    return MorphResult(method, shape, model, target, cl, wall, lo, hi, float(t_end), dict(options), extras)
+
+
+def write_morph_outputs(
+    result: MorphResult,
+    out_dir: Path,
+    compare_with: MorphResult | None = None,
+    *,
+    plots: bool = True,
+    extra_summary: dict | None = None,
+) -> dict:
+    """Write ``summary.json``, ``voltages.csv``, ``history.csv`` and figures into ``out_dir`` (atomically).
+
+    ``compare_with`` (e.g. LQR saturated at the same limits) adds its summary under ``"compare_with"``
+    and comparison figures. Returns the summary written.
+    """
+    from wingopt.errors import OutputError
+    from wingopt.results import ResultDirectory, write_csv, write_json
+
+    summary = result.summary()
+    if compare_with is not None:
+        summary["compare_with"] = compare_with.summary()
+    if extra_summary:
+        summary.update(extra_summary)
+    cl = result.closed_loop
+    try:
+        with ResultDirectory(out_dir) as tmp:
+            write_json(tmp / "summary.json", summary)
+            header = ["t"] + list(result.model.patch_names)
+            write_csv(tmp / "voltages.csv", header, np.column_stack([cl.t_u, cl.u]))
+            write_csv(
+                tmp / "history.csv",
+                ["t", "tip_x0_m", "tip_xW_m", "shape_error"],
+                np.column_stack([cl.t, cl.tip, cl.shape_error]),
+            )
+            if plots:
+                from wingopt.plots.morph import plot_morph
+
+                plot_morph(tmp, result, compare_with)
+    except OutputError:
+        raise
+    except OSError as exc:
+        raise OutputError(f"out = {str(out_dir)!r}: cannot write ({exc.strerror or exc})") from None
+    return summary
