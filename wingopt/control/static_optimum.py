@@ -1,0 +1,169 @@
+"""The best shape the patches can hold within their voltage limits (a 9-variable convex QP).
+
+At equilibrium ``K z = b u``, so ``z(u) = Zs u`` with ``Zs = K^-1 b`` the static field of each patch
+pair per volt (one sparse factorisation, nine solves). The static optimum is::
+
+    min_u  ||Zs u - z_d||_M^2 / ||z_d||_M^2  +  rho ||u / v_ref||^2      s.t.  vmin <= u <= vmax
+
+with a small input weight ``rho`` (1e-6 times the mean diagonal of the shape term's Hessian, see
+:func:`input_weight_absolute`: it only breaks ties between patches with nearly parallel fields). It is solved in scaled
+units ``w = u / v_ref`` (``v_ref = 1 kV``) so that the cost and the unknowns are O(1). Its solution
+is also the steady state the finite-horizon QP converges to (:mod:`wingopt.control.mpc`), and its
+shape error the floor that no controller can beat within the limits.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from wingopt.control.mpc_backends import ParametricQP, make_backend
+from wingopt.errors import InputError
+from wingopt.solvers import SolveStatus
+
+__all__ = ["StaticOptimum", "static_fields", "static_optimum", "static_qp", "input_weight_absolute"]
+
+log = logging.getLogger(__name__)
+
+VOLT_SCALE = 1000.0
+"""The QPs' voltage unit (V): decision variables are in kV."""
+
+
+def static_fields(model) -> np.ndarray:
+    """``Zs = K^-1 b``: the static deflection per volt of each patch pair, shape ``(n, m)``."""
+    return spla.splu(sp.csc_matrix(model.stiffness)).solve(np.asarray(model.actuation, dtype=float))
+
+
+@dataclass(frozen=True)
+class StaticOptimum:
+    """Solution of the static problem.
+
+    Attributes
+    ----------
+    voltages : ndarray (m,)
+        Optimal patch voltages (V), exactly within the limits.
+    deflection : ndarray (n,)
+        Equilibrium field ``Zs u`` on the full FE model.
+    shape_error : float
+        ``||z - z_d||_M / ||z_d||_M`` (full FE model).
+    objective : float
+        The scaled cost (shape term plus input weight).
+    active : ndarray of bool (m,)
+        Patches at a voltage limit.
+    status : SolveStatus
+    backend : str
+    """
+
+    voltages: np.ndarray
+    deflection: np.ndarray
+    shape_error: float
+    objective: float
+    active: np.ndarray
+    status: SolveStatus
+    backend: str
+
+
+def static_qp(
+    fields: np.ndarray, mass, target: np.ndarray, *, vmin, vmax, input_weight: float = 1e-6
+) -> tuple[ParametricQP, np.ndarray, float]:
+    """The static problem as a :class:`ParametricQP` in ``w = u / 1 kV``.
+
+    The parameter is the scaled projection ``g = Zs^T M z_d v_ref / ||z_d||^2`` (so that one built
+    problem can be re-solved for another target of the same norm); returns ``(qp, g, scale)`` with
+    ``scale = ||z_d||_M``.
+    """
+    m = fields.shape[1]
+    MZ = np.asarray(mass @ fields)
+    s2 = float(target @ (mass @ target))
+    if not s2 > 0:
+        raise InputError("target: the target shape is zero; nothing to morph to")
+    G = (VOLT_SCALE**2 / s2) * (fields.T @ MZ)
+    Hs = G + input_weight_absolute(G, input_weight) * np.eye(m)
+    g = (VOLT_SCALE / s2) * (MZ.T @ target)
+    lo, hi = _limits(vmin, vmax, m)
+    qp = ParametricQP(
+        H=sp.csc_matrix(2.0 * Hs),
+        q0=np.zeros(m),
+        Qp=sp.csc_matrix(-2.0 * np.eye(m)),
+        A_in=sp.identity(m, format="csc"),
+        l0=lo / VOLT_SCALE,
+        Lp=sp.csc_matrix((m, m)),
+        u0=hi / VOLT_SCALE,
+        Up=sp.csc_matrix((m, m)),
+        c0=1.0,
+    )
+    return qp, g, float(np.sqrt(s2))
+
+
+def input_weight_absolute(gram: np.ndarray, relative: float) -> float:
+    """``rho`` of the scaled problem: ``relative`` times the mean diagonal of the shape Gram matrix.
+
+    The shape term's curvature per kV varies by orders of magnitude between targets (a 10 cm bend
+    against a 1 cm twist), so the input weight is set relative to it: ``relative = 1e-6`` changes
+    the unconstrained optimum's shape error by ~1e-4 relative and a constrained one not visibly.
+    """
+    return float(relative) * float(np.trace(gram)) / gram.shape[0]
+
+
+def _limits(vmin, vmax, m: int) -> tuple[np.ndarray, np.ndarray]:
+    lo = np.broadcast_to(np.asarray(-np.inf if vmin is None else vmin, dtype=float), (m,)).copy()
+    hi = np.broadcast_to(np.asarray(np.inf if vmax is None else vmax, dtype=float), (m,)).copy()
+    if np.any(lo > hi):
+        raise InputError(f"vmin = {vmin!r}, vmax = {vmax!r}: expected vmin <= vmax")
+    # Unbounded sides become a bound far outside any voltage the problem could use (QP backends
+    # want finite numbers; 1e9 V is never active).
+    return np.where(np.isfinite(lo), lo, -1e9), np.where(np.isfinite(hi), hi, 1e9)
+
+
+def static_optimum(
+    model,
+    target: np.ndarray,
+    *,
+    vmin=None,
+    vmax=None,
+    input_weight: float = 1e-6,
+    backend: str = "clarabel",
+    fields: np.ndarray | None = None,
+) -> StaticOptimum:
+    """Best equilibrium shape within ``vmin <= u <= vmax`` (per patch, scalars broadcast).
+
+    Parameters
+    ----------
+    model : PlateModel
+        Full FE model (``mass``, ``stiffness``, ``actuation``).
+    target : ndarray (n,)
+        Target coefficients ``z_d``.
+    vmin, vmax : float or array, optional
+        Voltage limits (V); ``None`` for unbounded.
+    input_weight : float
+        ``rho`` relative to the mean curvature of the shape term per kV^2 (:func:`input_weight_absolute`).
+    backend : str
+        QP backend (:data:`wingopt.control.mpc_backends.BACKENDS`), or ``"direct"`` for the
+        unconstrained closed form (only when both limits are ``None``).
+    fields : ndarray (n, m), optional
+        Precomputed :func:`static_fields`.
+    """
+    Zs = static_fields(model) if fields is None else fields
+    target = np.asarray(target, dtype=float)
+    qp, g, scale = static_qp(Zs, model.mass, target, vmin=vmin, vmax=vmax, input_weight=input_weight)
+    if backend == "direct":
+        if vmin is not None or vmax is not None:
+            raise InputError("backend = 'direct' solves the unconstrained problem only: pass vmin = vmax = None")
+        w = np.linalg.solve(qp.H.toarray(), 2.0 * g)
+        status, name = SolveStatus.OPTIMAL, "direct"
+    else:
+        sol = make_backend(backend, qp).solve(g)
+        w, status, name = sol.v, sol.status, sol.backend
+    # Interior-point answers sit within ~1e-9 kV of the limits: clip so the voltages hold exactly.
+    w = np.clip(w, qp.l0, qp.u0)
+    u = VOLT_SCALE * w
+    z = Zs @ u
+    err = float(np.sqrt(max((z - target) @ (model.mass @ (z - target)), 0.0))) / scale
+    tol = 1e-6 * (qp.u0 - qp.l0)
+    active = (w <= qp.l0 + tol) | (w >= qp.u0 - tol)
+    log.debug("static optimum: error %.4g, voltages %s", err, np.round(u, 1))
+    return StaticOptimum(u, z, err, qp.objective(w, g), active, status, name)
