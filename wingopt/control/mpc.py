@@ -97,6 +97,9 @@ class QPSettings:
     input_weight, rate_weight : float
         ``rho`` and ``sigma``, relative to the mean curvature of the shape term per kV^2
         (:func:`~wingopt.control.static_optimum.input_weight_absolute`).
+    input_weight_si : float or None
+        ``rho`` as the seed LQR's ``r`` instead (V^-2 against ``||z - z_d||_M^2`` in kg m^2; e.g.
+        :data:`wingopt.control.tracking.R_DEFAULT`), so that both settle at the same fit.
     slew_rate : float or None
         Largest voltage rate per patch (V/s); ``None`` for none.
     terminal : str
@@ -132,6 +135,7 @@ class QPSettings:
     plan_time: float = 2.0
     velocity_weight: float | None = 1e-2
     input_weight: float = 1e-6
+    input_weight_si: float | None = None
     rate_weight: float = 1e-3
     slew_rate: float | None = 1.0e5
     terminal: str = "lqr"
@@ -163,7 +167,9 @@ class QPSettings:
         for name in ("input_weight", "rate_weight", "process_noise", "measurement_noise"):
             if not getattr(self, name) >= 0:
                 raise InputError(f"{name} = {getattr(self, name)!r}: expected a non-negative number")
-        if self.input_weight <= 0 and self.rate_weight <= 0:
+        if self.input_weight_si is not None and not self.input_weight_si > 0:
+            raise InputError(f"input_weight_si = {self.input_weight_si!r}: expected a positive weight (V^-2)")
+        if self.input_weight <= 0 and self.rate_weight <= 0 and self.input_weight_si is None:
             raise InputError("input_weight and rate_weight are both zero: the QP needs one to be positive")
         if self.slew_rate is not None and not self.slew_rate > 0:
             raise InputError(f"slew_rate = {self.slew_rate!r}: expected a positive rate (V/s) or None")
@@ -272,7 +278,7 @@ class TrackingProblem:
         Sg = reduced.static_gain() * (VOLT_SCALE / s)
         shape_gram = Sg.T @ Sg + gram_R  # == VOLT^2/s^2 Zs^T M Zs (the static problem's)
         m = G.shape[1]
-        rho = input_weight_absolute(shape_gram, settings.input_weight)
+        rho = input_weight_absolute(shape_gram, settings.input_weight, settings.input_weight_si, s)
         sigma = input_weight_absolute(shape_gram, settings.rate_weight)
         beta = settings.velocity_weight if settings.velocity_weight is not None else 1.0 / reduced.omega[0] ** 2
         lo, hi = _limits(vmin, vmax, m)
@@ -286,6 +292,7 @@ class TrackingProblem:
             vmin=vmin,
             vmax=vmax,
             input_weight=settings.input_weight,
+            input_weight_si=settings.input_weight_si,
             backend=settings.solver,
             fields=zs_fields,
         )

@@ -68,7 +68,14 @@ class StaticOptimum:
 
 
 def static_qp(
-    fields: np.ndarray, mass, target: np.ndarray, *, vmin, vmax, input_weight: float = 1e-6
+    fields: np.ndarray,
+    mass,
+    target: np.ndarray,
+    *,
+    vmin,
+    vmax,
+    input_weight: float = 1e-6,
+    input_weight_si: float | None = None,
 ) -> tuple[ParametricQP, np.ndarray, float]:
     """The static problem as a :class:`ParametricQP` in ``w = u / 1 kV``.
 
@@ -82,7 +89,7 @@ def static_qp(
     if not s2 > 0:
         raise InputError("target: the target shape is zero; nothing to morph to")
     G = (VOLT_SCALE**2 / s2) * (fields.T @ MZ)
-    Hs = G + input_weight_absolute(G, input_weight) * np.eye(m)
+    Hs = G + input_weight_absolute(G, input_weight, input_weight_si, np.sqrt(s2)) * np.eye(m)
     g = (VOLT_SCALE / s2) * (MZ.T @ target)
     lo, hi = _limits(vmin, vmax, m)
     qp = ParametricQP(
@@ -99,13 +106,22 @@ def static_qp(
     return qp, g, float(np.sqrt(s2))
 
 
-def input_weight_absolute(gram: np.ndarray, relative: float) -> float:
-    """``rho`` of the scaled problem: ``relative`` times the mean diagonal of the shape Gram matrix.
+def input_weight_absolute(
+    gram: np.ndarray, relative: float, si: float | None = None, scale: float | None = None
+) -> float:
+    """``rho`` of the scaled problem (per kV^2, against ``||z - z_d||_M^2 / ||z_d||_M^2``).
 
-    The shape term's curvature per kV varies by orders of magnitude between targets (a 10 cm bend
-    against a 1 cm twist), so the input weight is set relative to it: ``relative = 1e-6`` changes
-    the unconstrained optimum's shape error by ~1e-4 relative and a constrained one not visibly.
+    By default ``relative`` times the mean diagonal of the scaled shape Gram matrix ``gram``: the
+    shape term's curvature per kV varies by orders of magnitude between targets (a 10 cm bend
+    against a 1 cm twist), and ``relative = 1e-6`` changes the unconstrained optimum's shape error
+    by ~1e-4 relative and a constrained one not visibly. With ``si`` given (V^-2, against
+    ``||z - z_d||_M^2`` in kg m^2: the seed LQR's ``R = r I`` convention) it is ``si (1 kV)^2 / scale^2``
+    with ``scale = ||z_d||_M``, so that the static problem is the LQR's regularised fit.
     """
+    if si is not None:
+        if scale is None:
+            raise InputError("input_weight_si needs the target's M-norm (scale)")
+        return float(si) * VOLT_SCALE**2 / float(scale) ** 2
     return float(relative) * float(np.trace(gram)) / gram.shape[0]
 
 
@@ -119,6 +135,35 @@ def _limits(vmin, vmax, m: int) -> tuple[np.ndarray, np.ndarray]:
     return np.where(np.isfinite(lo), lo, -1e9), np.where(np.isfinite(hi), hi, 1e9)
 
 
+def _polish(qp: ParametricQP, g: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Snap a backend's answer to its active set and solve the rest exactly (9 unknowns).
+
+    Interior-point and ADMM answers sit ~1e-7 kV inside an active limit; fixing the patches found
+    at a limit and solving the stationarity conditions of the free ones gives the exact optimum,
+    accepted only if it is feasible and the multipliers of the fixed patches have the right sign
+    (otherwise the backend's clipped answer is kept).
+    """
+    H = qp.H.toarray()
+    lo, hi = qp.l0, qp.u0
+    tol = 1e-5 * (hi - lo)
+    at_lo, at_hi = w <= lo + tol, w >= hi - tol
+    fixed = at_lo | at_hi
+    x = np.where(at_lo, lo, np.where(at_hi, hi, w))
+    free = ~fixed
+    grad = -2.0 * g  # q(p) of the static QP
+    if free.any():
+        rhs = -(grad[free] + H[np.ix_(free, fixed)] @ x[fixed])
+        x[free] = np.linalg.solve(H[np.ix_(free, free)], rhs)
+    gradient = H @ x + grad
+    ok = (
+        np.all(x[free] >= lo[free])
+        and np.all(x[free] <= hi[free])
+        and np.all(gradient[at_lo] >= -1e-9 * max(np.abs(grad).max(), 1e-300))
+        and np.all(gradient[at_hi] <= 1e-9 * max(np.abs(grad).max(), 1e-300))
+    )
+    return x if ok else w
+
+
 def static_optimum(
     model,
     target: np.ndarray,
@@ -126,6 +171,7 @@ def static_optimum(
     vmin=None,
     vmax=None,
     input_weight: float = 1e-6,
+    input_weight_si: float | None = None,
     backend: str = "clarabel",
     fields: np.ndarray | None = None,
 ) -> StaticOptimum:
@@ -141,6 +187,8 @@ def static_optimum(
         Voltage limits (V); ``None`` for unbounded.
     input_weight : float
         ``rho`` relative to the mean curvature of the shape term per kV^2 (:func:`input_weight_absolute`).
+    input_weight_si : float, optional
+        ``r`` in V^-2 against ``||z - z_d||_M^2`` (kg m^2) instead, the seed LQR's convention.
     backend : str
         QP backend (:data:`wingopt.control.mpc_backends.BACKENDS`), or ``"direct"`` for the
         unconstrained closed form (only when both limits are ``None``).
@@ -149,7 +197,9 @@ def static_optimum(
     """
     Zs = static_fields(model) if fields is None else fields
     target = np.asarray(target, dtype=float)
-    qp, g, scale = static_qp(Zs, model.mass, target, vmin=vmin, vmax=vmax, input_weight=input_weight)
+    qp, g, scale = static_qp(
+        Zs, model.mass, target, vmin=vmin, vmax=vmax, input_weight=input_weight, input_weight_si=input_weight_si
+    )
     if backend == "direct":
         if vmin is not None or vmax is not None:
             raise InputError("backend = 'direct' solves the unconstrained problem only: pass vmin = vmax = None")
@@ -158,8 +208,7 @@ def static_optimum(
     else:
         sol = make_backend(backend, qp).solve(g)
         w, status, name = sol.v, sol.status, sol.backend
-    # Interior-point answers sit within ~1e-9 kV of the limits: clip so the voltages hold exactly.
-    w = np.clip(w, qp.l0, qp.u0)
+    w = _polish(qp, g, np.clip(w, qp.l0, qp.u0))
     u = VOLT_SCALE * w
     z = Zs @ u
     err = float(np.sqrt(max((z - target) @ (model.mass @ (z - target)), 0.0))) / scale
