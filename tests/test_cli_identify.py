@@ -231,3 +231,15 @@ def test_compare_command_writes_records_and_resumes(small_file, tmp_path, capsys
     assert main(argv + ["--resume"]) == 0
     assert len((out / "records.jsonl").read_text().splitlines()) == 1
     assert main(["compare", str(small_file), "--methods", "kalman", "--out", str(out)]) == 2
+
+
+def test_state_prior_option():
+    from wingopt.cli.identify import state_prior_settings
+    from wingopt.errors import InputError
+    from wingopt.estimation.mhe import STATE_PRIOR_EVIDENCE
+
+    assert state_prior_settings("evidence") == {"state_prior_choices": STATE_PRIOR_EVIDENCE}
+    assert state_prior_settings("0.01") == {"state_prior": 0.01}
+    for bad in ("-1", "tight", "nan"):
+        with pytest.raises(InputError, match="state-prior"):
+            state_prior_settings(bad)

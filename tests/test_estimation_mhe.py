@@ -339,3 +339,37 @@ def test_l1_protocol_accuracy_and_lambda_from_data(membrane_problem, membrane_mo
     assert 0 < res.lift_std[-1] < 0.05
     assert np.all(np.diff(res.t) > 0) and res.load.shape == (1001, model.n)
     assert sp.issparse(model.gram)
+
+
+# -- evidence and the evidence-chosen state prior ------------------------------------------------
+def test_log_evidence_matches_a_direct_gaussian_computation(small_estimator):
+    """Laplace evidence of a window: prior mean from (H0, g0), c0 ignored, scaled = unscaled."""
+    est = small_estimator
+    problem = est._window_problem(0, est.lam)
+    theta = est._sol.theta
+    _, J = problem.linearize(theta)
+    mu = np.linalg.solve(problem.H0, problem.g0)
+    d = theta - mu
+    H = J.T @ J + problem.H0
+    direct = -0.5 * (problem.data_cost(theta) + d @ problem.H0 @ d)
+    direct -= 0.5 * (np.linalg.slogdet(H)[1] - np.linalg.slogdet(problem.H0)[1])
+    assert problem.log_evidence(theta) == pytest.approx(direct, rel=1e-6, abs=1e-4)
+    shifted = dataclasses.replace(problem, c0=123.0)
+    assert shifted.log_evidence(theta) == pytest.approx(problem.log_evidence(theta), rel=1e-12)
+    # The optimum has more evidence than a perturbed point of the same Gaussian approximation.
+    assert problem.log_evidence(theta) > problem.log_evidence(theta * (1 + 1e-2))
+
+
+def test_state_prior_chosen_by_the_evidence(small_model, small_case):
+    """The plant starts from the bubble: with the bubble as prior the data prefer a tight state
+    prior; with rest as the (wrong) prior they prefer the weak one."""
+    s = MHESettings(window=100, stride=50, modes=20, state_prior_choices=(1.0, 1e-3))
+    est = MovingHorizonEstimator(small_model, s).setup(small_case.measurements)
+    info = est.result().info["state_prior"]
+    assert info["rule"] == "evidence" and info["chosen"] == 1e-3
+    assert info["log_evidence"][1e-3] > info["log_evidence"][1.0] + 20
+    assert est.lambda_info["path"][0]["log_evidence"] is not None
+    rest = MovingHorizonEstimator(small_model, s).setup(small_case.measurements, initial_deflection=0.0)
+    assert rest.state_prior == 1.0
+    with pytest.raises(InputError, match="state_prior_choices"):
+        MHESettings(state_prior_choices=(1.0, 0.0))

@@ -66,3 +66,27 @@ def test_consistency_error_falls_with_sensor_count(membrane_problem):
     errs = [r["load_error_mean"] for r in rows]
     assert [r["sensors"] for r in rows] == [4, 12, 32]
     assert np.all(np.diff(errs) < 0), errs
+
+
+def test_free_edge_option_with_evidence_state_prior_on_l3(membrane_problem):
+    """The free-edge aim (L3 <= 0.2) with ``--load-space free --state-prior evidence``, seeds 0–4, 1 %."""
+    from wingopt.estimation.mhe import STATE_PRIOR_EVIDENCE, MHESettings
+
+    settings = MHESettings(load_space="free", state_prior_choices=STATE_PRIOR_EVIDENCE)
+    recs = comparison_study(
+        membrane_problem, ("L3",), (0.01,), methods=("mhe",), mhe_settings=settings, oracle=False, jobs=2
+    )
+    assert np.mean([r.load_error for r in recs]) <= 0.2  # measured 0.162
+    assert max(r.lift_error for r in recs) <= 0.05  # measured 0.024
+    assert all(r.sign_ok for r in recs)
+
+
+@pytest.mark.xfail(
+    strict=True, reason="not met out of sample: worst ratio 1.58 (L1 5 % seed 201), 1.54 (L2 5 % seed 203)"
+)
+def test_lambda_rule_within_1_5_of_the_oracle_out_of_sample(membrane_problem):
+    """The knee rule on fresh noise seeds 200–204 (its constants were set on seeds overlapping 0–4)."""
+    recs = comparison_study(membrane_problem, seeds=range(200, 205), methods=("mhe",), jobs=2)
+    for key, limit in LIMITS.items():
+        assert np.mean([r.load_error for r in recs if (r.load, r.noise) == key]) <= limit  # met (0.014–0.033)
+    assert max(r.load_error / r.oracle_load_error for r in recs) <= 1.5

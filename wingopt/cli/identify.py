@@ -90,6 +90,12 @@ def register(sub, common) -> None:
     g.add_argument("--backend", choices=("numpy", "cvxpy", "ipopt"), default="numpy", help="window solver")
     g.add_argument("--qp-solver", choices=("clarabel", "osqp"), default="clarabel", help="QP solver of cvxpy")
     g.add_argument("--load-space", choices=("fixed", "free"), default="fixed", help="load basis (default fixed)")
+    g.add_argument(
+        "--state-prior",
+        default="1",
+        help="prior std of the initial modal state relative to the data's amplitude (default 1: weak), or "
+        "'evidence': chosen among 1, 0.1, 0.01, 0.001 by the first window's evidence (helps --load-space free)",
+    )
     g.add_argument("--window", type=int, default=200, help="window length, samples (default 200)")
     g.add_argument("--stride", type=int, default=50, help="samples per window step (default 50)")
     g.add_argument("--load-model", choices=("constant", "random_walk"), default="constant")
@@ -105,10 +111,26 @@ def register(sub, common) -> None:
     p.set_defaults(func=run)
 
 
+def state_prior_settings(text: str) -> dict:
+    """``MHESettings`` fields of a ``--state-prior`` value: a positive number or ``evidence``."""
+    from wingopt.estimation.mhe import STATE_PRIOR_EVIDENCE
+
+    if text.strip().lower() == "evidence":
+        return {"state_prior_choices": STATE_PRIOR_EVIDENCE}
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (np.isfinite(value) and value > 0):
+        raise InputError(f"--state-prior {text!r}: expected a positive number or 'evidence'")
+    return {"state_prior": value}
+
+
 def _settings(args):
     from wingopt.estimation.mhe import MHESettings
 
     return MHESettings(
+        **state_prior_settings(args.state_prior),
         window=args.window,
         stride=args.stride,
         load_model=args.load_model,
@@ -136,8 +158,8 @@ def run(args) -> int:
     if args.mesh:
         problem = problem.with_mesh(parse_mesh(args.mesh))
     settings = _settings(args) if args.method == "mhe" else None
-    if args.method != "mhe" and (args.backend != "numpy" or args.load_space != "fixed"):
-        raise InputError("--backend and --load-space apply to --method mhe only")
+    if args.method != "mhe" and (args.backend != "numpy" or args.load_space != "fixed" or args.state_prior != "1"):
+        raise InputError("--backend, --load-space and --state-prior apply to --method mhe only")
     model = MembraneModel.from_problem(problem)
     summary: dict = {"problem": problem.name, "method": args.method, "mesh": list(problem.nodes)}
     case = None

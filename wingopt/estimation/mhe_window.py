@@ -18,6 +18,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+import scipy.linalg as sla
 
 from wingopt.estimation.mhe_model import ReducedModel, WindowBasis
 
@@ -108,6 +109,32 @@ class WindowProblem:
         H = J.T @ J + self.H0
         b = J.T @ r - self.H0 @ theta + self.g0
         return 0.5 * (H + H.T), b
+
+    def log_evidence(self, theta: np.ndarray) -> float:
+        """Laplace (Gauss–Newton) log marginal likelihood of the window's data at the optimum ``theta``.
+
+        The quadratic part is read as a Gaussian prior with precision ``H0`` and mean
+        ``H0^-1 g0`` (its own constant ``g0^T H0^-1 g0`` replaces ``c0``, so the value does not
+        depend on how ``c0`` was set), which needs ``H0`` positive definite (the first window:
+        state prior + ``lambda S^-1``). Returned up to ``-n/2 log 2 pi - sum log sigma``, which is
+        the same for every prior on the same data::
+
+            log Z = -1/2 [chi2 + (theta - mu)^T H0 (theta - mu)] - 1/2 log det(H) / det(H0)
+
+        with ``H = J^T W J + H0``. Computed in the scaled unknowns (the scale cancels in the ratio).
+        """
+        D = self.scale
+        _, J = self.linearize(theta)
+        H0s = D[:, None] * self.H0 * D[None, :]
+        H0s = 0.5 * (H0s + H0s.T)
+        Js = J * D[None, :]
+        c0 = sla.cho_factor(H0s)
+        mu_s = sla.cho_solve(c0, D * self.g0)
+        d = theta / D - mu_s
+        prior = float(d @ (H0s @ d))
+        ch = sla.cho_factor(Js.T @ Js + H0s)
+        logdet_ratio = 2.0 * (np.sum(np.log(np.diag(ch[0]))) - np.sum(np.log(np.diag(c0[0]))))
+        return -0.5 * (self.data_cost(theta) + prior) - 0.5 * logdet_ratio
 
     def second_order(self, theta: np.ndarray) -> np.ndarray:
         """``-sum w r d2h/dtheta2`` (half-cost units): exact Hessian = ``H_GN`` + this.

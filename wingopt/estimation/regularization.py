@@ -69,12 +69,14 @@ KNEE_SAFETY = 3.0
 
 @dataclass(frozen=True)
 class LambdaPoint:
-    """One point of the lambda path: weight, data misfit, effective dof, number of data."""
+    """One point of the lambda path: weight, data misfit, effective dof, number of data and the
+    window's Laplace log evidence (``None`` when not computed)."""
 
     lam: float
     chi2: float
     dof: float
     n: int
+    log_evidence: float | None = None
 
     @property
     def gcv(self) -> float:
