@@ -27,9 +27,10 @@ construction), so the receding-horizon loop settles exactly at the static optimu
 active limits, the whole scheme is the infinite-horizon LQR. ``terminal="static"`` replaces
 ``V_f`` by the equality ``x_N = x_s``.
 
-QP. Written once with the states as variables (``formulation="sparse"``), and condensed by
-eliminating the states (``"condensed"``, dense ``N m`` Hessian: the default up to 600 inputs);
-the parameter ``p = (x_0, w_prev)`` enters the linear term and the bounds only
+QP. Written once with the states as variables (``formulation="sparse"``, banded KKT: the default
+for Clarabel, OSQP, IPOPT and the sparse CasADi plugins), and condensed by eliminating the states
+(``"condensed"``, dense ``N m`` Hessian: the default for the dense active-set plugins); the
+parameter ``p = (x_0, w_prev)`` enters the linear term and the bounds only
 (:class:`~wingopt.control.mpc_backends.ParametricQP`), so each backend is built once and re-solved
 each period, warm-started from the shifted previous plan.
 
@@ -53,7 +54,7 @@ from wingopt.control.mpc_backends import BACKENDS, ParametricQP, QPBackend, make
 from wingopt.control.static_optimum import (
     VOLT_SCALE,
     StaticOptimum,
-    _limits,
+    finite_limits,
     input_weight_absolute,
     static_fields,
     static_optimum,
@@ -282,7 +283,7 @@ class TrackingProblem:
         rho = input_weight_absolute(shape_gram, settings.input_weight, settings.input_weight_si, s)
         sigma = input_weight_absolute(shape_gram, settings.rate_weight)
         beta = settings.velocity_weight if settings.velocity_weight is not None else 1.0 / reduced.omega[0] ** 2
-        lo, hi = _limits(vmin, vmax, m)
+        lo, hi = finite_limits(vmin, vmax, m)
         slew = None if settings.slew_rate is None else settings.slew_rate * period / VOLT_SCALE
 
         # Static optimum on the full model (same weights): the steady state the QP must settle at.

@@ -25,7 +25,7 @@ from wingopt.control.mpc_backends import ParametricQP, make_backend
 from wingopt.errors import InputError
 from wingopt.solvers import SolveStatus
 
-__all__ = ["StaticOptimum", "static_fields", "static_optimum", "static_qp", "input_weight_absolute"]
+__all__ = ["StaticOptimum", "static_fields", "static_optimum", "static_qp", "input_weight_absolute", "finite_limits"]
 
 log = logging.getLogger(__name__)
 
@@ -91,7 +91,7 @@ def static_qp(
     G = (VOLT_SCALE**2 / s2) * (fields.T @ MZ)
     Hs = G + input_weight_absolute(G, input_weight, input_weight_si, np.sqrt(s2)) * np.eye(m)
     g = (VOLT_SCALE / s2) * (MZ.T @ target)
-    lo, hi = _limits(vmin, vmax, m)
+    lo, hi = finite_limits(vmin, vmax, m)
     qp = ParametricQP(
         H=sp.csc_matrix(2.0 * Hs),
         q0=np.zeros(m),
@@ -125,7 +125,8 @@ def input_weight_absolute(
     return float(relative) * float(np.trace(gram)) / gram.shape[0]
 
 
-def _limits(vmin, vmax, m: int) -> tuple[np.ndarray, np.ndarray]:
+def finite_limits(vmin, vmax, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per-patch voltage limits (V) as finite arrays: scalars broadcast, ``None``/inf become +-1e9 V."""
     lo = np.broadcast_to(np.asarray(-np.inf if vmin is None else vmin, dtype=float), (m,)).copy()
     hi = np.broadcast_to(np.asarray(np.inf if vmax is None else vmax, dtype=float), (m,)).copy()
     if np.any(lo > hi):
