@@ -1,0 +1,266 @@
+"""The main job on the built-in problems: ``wingopt demo`` / ``make demo``.
+
+1. Morph the plate wing into twist, camber and bending with the QP controller within the
+   actuators' limits (-500/+1500 V), next to the seed's LQR saturated at the same limits and the
+   seed's unlimited LQR.
+2. Identify loads L1–L3 on the membrane (truth on 49x25, estimators on 25x13, 1 % noise) with the
+   moving-horizon estimator, the seed-faithful JEKF and the tuned JEKF.
+3. Reproduce the seed's reference tables (membrane Table 6.2, plate Table 5.4).
+
+Everything goes into one directory (default ``./wingopt-demo/``), written atomically: per-run
+sub-directories with the ``morph``/``identify`` outputs, ``summary.json`` and a single
+self-contained ``report.html``.
+"""
+
+from __future__ import annotations
+
+import platform
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from wingopt import __version__
+from wingopt.results import ResultDirectory, write_json
+from wingopt.results.report import Report
+
+__all__ = ["DemoConfig", "run_demo", "SEED_TABLE_5_4", "SEED_TABLE_6_2", "SEED_JEKF_1PCT"]
+
+SHAPES = ("twist", "camber", "bending")
+LOADS = ("L1", "L2", "L3")
+
+SEED_TABLE_5_4 = {(7, 31): [10.116, 40.902, 50.719, 121.488], (13, 61): [9.777, 40.329, 49.940, 119.560]}
+SEED_TABLE_6_2 = {(25, 13): [82.14063341, 103.90059613, 132.44779727, 151.45989864]}
+SEED_JEKF_1PCT = {"L1": 1.343e-4, "L2": 0.1282, "L3": 0.05672}
+"""The seed's JEKF final load errors at 1 % noise (spec §5; L3 is the seed's own reading of load 3,
+and the seed's same-mesh protocol)."""
+
+
+@dataclass(frozen=True)
+class DemoConfig:
+    """What the demo runs. ``quick`` shrinks meshes and durations (tests, smoke runs)."""
+
+    plate_nodes: tuple[int, int] = (13, 61)
+    t_end: float = 2.0
+    noise: float = 0.01
+    seed: int = 0
+    jekf_modes: int = 60
+    identify_t_end: float = 1.0
+
+    @classmethod
+    def quick(cls) -> DemoConfig:
+        return cls(plate_nodes=(7, 31), t_end=0.5, identify_t_end=0.5, jekf_modes=30)
+
+
+def _progress(total: int, enabled: bool | None):
+    from tqdm.auto import tqdm
+
+    if enabled is None:
+        enabled = sys.stderr.isatty()
+    return tqdm(total=total, disable=not enabled, desc="wingopt demo", unit="step", leave=False)
+
+
+def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = None, progress: bool | None = None):
+    """Run the demo and write ``out_dir`` (replaced atomically). Returns the summary dict."""
+    from wingopt.control.morph import morph, write_morph_outputs
+    from wingopt.estimation.identify import identify, write_identify_outputs
+    from wingopt.membrane import MembraneModel
+    from wingopt.plate import PlateModel
+    from wingopt.problem import load_problem
+
+    cfg = config or DemoConfig()
+    t_start = time.perf_counter()
+    plate = load_problem("plate")
+    membrane = load_problem("membrane")
+    summary: dict = {"version": __version__, "config": cfg.__dict__, "morph": {}, "identify": {}, "tables": {}}
+    bar = _progress(len(SHAPES) * 3 + len(LOADS) * 3 + 2, progress)
+    with ResultDirectory(out_dir) as tmp:
+        # -- 1. morphing ----------------------------------------------------------------------
+        for shape in SHAPES:
+            bar.set_description(f"morph {shape}: QP")
+            qp = morph(plate, shape, "qp", t_end=cfg.t_end, nodes=cfg.plate_nodes)
+            bar.update()
+            bar.set_description(f"morph {shape}: saturated LQR")
+            lo, hi = qp.vmin, qp.vmax
+            lqr_sat = morph(plate, shape, "lqr", vmin=lo, vmax=hi, t_end=cfg.t_end, nodes=cfg.plate_nodes)
+            bar.update()
+            bar.set_description(f"morph {shape}: seed LQR (unlimited)")
+            lqr_free = morph(plate, shape, "lqr", t_end=cfg.t_end, nodes=cfg.plate_nodes)
+            bar.update()
+            write_morph_outputs(qp, tmp / "morph" / shape, compare_with=lqr_sat)
+            write_morph_outputs(lqr_free, tmp / "morph" / f"{shape}-lqr-unlimited")
+            summary["morph"][shape] = {
+                "qp": qp.summary(),
+                "lqr_saturated": lqr_sat.summary(),
+                "lqr_unlimited": lqr_free.summary(),
+            }
+        # -- 2. load identification -------------------------------------------------------------
+        for load in LOADS:
+            summary["identify"][load] = {}
+            for method in ("mhe", "jekf", "jekf-tuned"):
+                bar.set_description(f"identify {load}: {method}")
+                run = identify(
+                    membrane,
+                    load=load,
+                    noise=cfg.noise,
+                    seed=cfg.seed,
+                    method=method,
+                    t_end=cfg.identify_t_end,
+                    jekf_modes=cfg.jekf_modes,
+                )
+                write_identify_outputs(run, tmp / "identify" / f"{load}-{method}", plots=(method == "mhe"))
+                summary["identify"][load][method] = run.summary()
+                bar.update()
+        # -- 3. reference tables -----------------------------------------------------------------
+        bar.set_description("reference tables")
+        mem = MembraneModel.from_problem(membrane, (25, 13))
+        summary["tables"]["membrane_6_2"] = {
+            "mesh": [25, 13],
+            "ours": mem.frequencies_hz(4),
+            "seed": SEED_TABLE_6_2[(25, 13)],
+        }
+        bar.update()
+        pm = PlateModel.from_problem(plate, cfg.plate_nodes)
+        seed_plate = SEED_TABLE_5_4.get(tuple(cfg.plate_nodes))
+        summary["tables"]["plate_5_4"] = {
+            "mesh": list(cfg.plate_nodes),
+            "ours": pm.frequencies_hz(4),
+            "seed": seed_plate,
+        }
+        bar.update()
+        summary["wall_s"] = time.perf_counter() - t_start
+        write_json(tmp / "summary.json", summary)
+        _report(tmp, summary, cfg).write(tmp / "report.html")
+    bar.close()
+    return summary
+
+
+# -- report ---------------------------------------------------------------------------------------
+def _morph_rows(summary):
+    rows = []
+    for shape, runs in summary["morph"].items():
+        qp, sat, free = runs["qp"], runs["lqr_saturated"], runs["lqr_unlimited"]
+        rows.append(
+            [
+                shape,
+                qp["shape_error"],
+                sat["shape_error"],
+                qp.get("static_optimum_error", float("nan")),
+                free["shape_error"],
+                f"{free['peak_voltage_V'][0]:.0f} … {free['peak_voltage_V'][1]:.0f}",
+                f"{qp['peak_voltage_V'][0]:.0f} … {qp['peak_voltage_V'][1]:.0f}",
+                " / ".join(f"{1000 * v:.2f}" for v in qp["tip_corners_m"]),
+                " / ".join(f"{1000 * v:.2f}" for v in qp["target_tip_corners_m"]),
+            ]
+        )
+    return rows
+
+
+def _identify_rows(summary):
+    rows = []
+    for load, runs in summary["identify"].items():
+        mhe, seed, tuned = runs["mhe"], runs["jekf"], runs["jekf-tuned"]
+        std = mhe.get("lift_std_N")
+        rows.append(
+            [
+                load,
+                mhe["load_error"],
+                tuned["load_error"],
+                seed["load_error"],
+                SEED_JEKF_1PCT[load],
+                mhe["deflection_error"],
+                f"{mhe['lift_N']:.4f}" + (f" ± {std:.4f}" if std is not None else ""),
+                f"{mhe['true_lift_N']:.4f}",
+                f"{mhe['wall_s']:.2f}",
+            ]
+        )
+    return rows
+
+
+def summary_table(summary: dict) -> str:
+    """A short plain-text summary of the key numbers (printed by the command)."""
+    lines = ["morphing (plate, limits -500/+1500 V): final shape error ||z - z_d||_M / ||z_d||_M"]
+    lines.append(f"  {'shape':8} {'QP':>8} {'LQR sat.':>9} {'static opt.':>12} {'seed LQR (unlimited)':>22}")
+    for r in _morph_rows(summary):
+        lines.append(f"  {r[0]:8} {r[1]:8.4f} {r[2]:9.4f} {r[3]:12.4f} {r[4]:9.4f} at {r[5]:>13} V")
+    lines.append("load identification (membrane, 1 % noise): final relative L2 load error")
+    lines.append(f"  {'load':5} {'MHE':>8} {'tuned JEKF':>11} {'seed JEKF':>10} {'lift (N)':>20} {'true lift':>10}")
+    for r in _identify_rows(summary):
+        lines.append(f"  {r[0]:5} {r[1]:8.4f} {r[2]:11.4f} {r[3]:10.4f} {r[6]:>20} {r[7]:>10}")
+    lines.append(f"wall time {summary['wall_s']:.0f} s")
+    return "\n".join(lines)
+
+
+def _report(tmp: Path, summary: dict, cfg: DemoConfig) -> Report:
+    rep = Report("wingopt demo: morphing a plate wing and identifying membrane loads")
+    rep.paragraph(
+        f"wingopt {summary['version']} on Python {platform.python_version()} ({platform.machine()}); "
+        f"total wall time {summary['wall_s']:.0f} s. Each run's files are in the sub-directories next to "
+        "this report (morph/, identify/)."
+    )
+    rep.heading("1. Morphing the plate wing within the actuators' limits")
+    rep.paragraph(
+        f"Plate {cfg.plate_nodes[0]}x{cfg.plate_nodes[1]}, {cfg.t_end:g} s from rest. QP: receding-horizon "
+        "finite-horizon QP on a reduced model with a Kalman filter on the patch sensors, voltage limits "
+        "-500/+1500 V; LQR sat.: the seed's LQR/LQG clipped to the same limits; static opt.: the best shape "
+        "the patches can hold within the limits; seed LQR: the dissertation's unlimited controller."
+    )
+    rep.table(
+        ["shape", "QP", "LQR sat.", "static opt.", "seed LQR (unlimited)", "seed LQR volts", "QP volts",
+         "QP tip corners (mm)", "target tip (mm)"],
+        _morph_rows(summary),
+        "Final shape error ||z - z_d||_M / ||z_d||_M (lower is better) and voltages (V)",
+    )  # fmt: skip
+    for shape in summary["morph"]:
+        d = tmp / "morph" / shape
+        for name, cap in (("voltages.png", "voltage histories, QP vs saturated LQR"),
+                          ("tip_corners.png", "tip-corner histories"),
+                          ("surface.png", "final surface against the target")):  # fmt: skip
+            if (d / name).exists():
+                rep.figure(d / name, f"{shape}: {cap}")
+    rep.heading("2. Load identification on the membrane wing")
+    rep.paragraph(
+        f"Truth simulated on 49x25 (a finer mesh than the estimators' 25x13: no inverse crime), from the 1 cm "
+        f"bubble, {cfg.identify_t_end:g} s at 1 ms, {100 * cfg.noise:g} % noise (seed {cfg.seed}). The JEKF "
+        f"variants keep {cfg.jekf_modes} modes here for speed (same final errors to 3 digits as the exact filter "
+        "on the tuned variant; the seed-faithful one tunes lambda on the noise-free truth, as the seed did). "
+        "The seed's errors come from its own same-mesh protocol."
+    )
+    rep.table(
+        ["load", "MHE", "tuned JEKF", "seed JEKF", "seed's table (1 %)", "MHE deflection err.", "MHE lift (N)",
+         "true lift (N)", "MHE wall (s)"],
+        _identify_rows(summary),
+        "Final relative L2 load error (lower is better)",
+    )  # fmt: skip
+    for load in summary["identify"]:
+        d = tmp / "identify" / f"{load}-mhe"
+        for name, cap in (("load_field.png", "estimated vs true load"), ("lift.png", "lift history (1-sigma band)"),
+                          ("errors.png", "error histories")):  # fmt: skip
+            if (d / name).exists():
+                rep.figure(d / name, f"{load}, MHE: {cap}")
+    rep.heading("3. The seed's reference tables")
+    t62, t54 = summary["tables"]["membrane_6_2"], summary["tables"]["plate_5_4"]
+    rep.table(
+        ["mode", "ours (Hz)", "seed (Hz)", "rel. deviation"],
+        [
+            [i + 1, f"{o:.8f}", f"{s:.8f}", f"{abs(o - s) / s:.1e}"]
+            for i, (o, s) in enumerate(zip(t62["ours"], t62["seed"]))
+        ],
+        "Membrane Table 6.2, 25x13",
+    )
+    if t54["seed"] is not None:
+        rep.table(
+            ["mode", "ours (Hz)", "seed (Hz)", "deviation"],
+            [
+                [i + 1, f"{o:.3f}", f"{s:.3f}", f"{100 * (o - s) / s:+.1f} %"]
+                for i, (o, s) in enumerate(zip(t54["ours"], t54["seed"]))
+            ],
+            f"Plate Table 5.4, {t54['mesh'][0]}x{t54['mesh'][1]} (layout reconstructed and calibrated: docs/plate.md)",
+        )
+    rep.heading("Reproduce")
+    rep.paragraph(
+        "make demo (or .venv/bin/wingopt demo); single runs: wingopt morph plate --shape twist --method qp --out DIR; "
+        "wingopt identify membrane --load L1 --noise 1 --method mhe --out DIR; "
+        "full estimator comparison: wingopt compare."
+    )
+    return rep
