@@ -518,6 +518,7 @@ def identify(
     initial_load: float | None = None,
     regularization: float | None = None,
     rule: str = "discrepancy",
+    modes: int | None = None,
     **kwargs: Any,
 ) -> IdentificationResult:
     """The JEKF as the command line and the comparison studies run it.
@@ -536,6 +537,9 @@ def identify(
         prior when the problem states no initial deflection. Default: the problem's.
     regularization : float, optional
         Fixed ``lambda`` (skips the tuning).
+    modes : int, optional
+        Keep only the lowest ``modes`` membrane modes (:attr:`JEKFSettings.modes`; faster,
+        approximate); default: all (exact).
     kwargs :
         Passed to :func:`select_lambda` (tuned) or :func:`seed_lambda` (seed).
     """
@@ -544,7 +548,7 @@ def identify(
     if initial_load is not None and not (math.isfinite(initial_load) and initial_load != 0):
         raise InputError(f"initial_load = {initial_load!r}: expected a non-zero pressure (Pa)")
     if variant == "seed":
-        settings = JEKFSettings.seed(initial_load=initial_load)
+        settings = JEKFSettings.seed(initial_load=initial_load).replace(modes=modes)
         t0 = time.perf_counter()
         if regularization is not None:
             lam, source, search = _as_lambda("regularization", regularization), "given", None
@@ -565,7 +569,7 @@ def identify(
                 "method": search.method,
             }
         return res
-    settings = JEKFSettings.tuned(sign_prior=initial_load)
+    settings = JEKFSettings.tuned(sign_prior=initial_load).replace(modes=modes)
     if regularization is not None:
         res = JointEKF(model, settings.replace(regularization=_as_lambda("regularization", regularization))).run(
             measurements

@@ -195,7 +195,9 @@ def run_method(
         except ImportError as exc:  # pragma: no cover - the JEKF is built in parallel
             raise InputError(f"method {method}: the JEKF is not available ({exc})") from None
         variant = "tuned" if method == "jekf-tuned" else "seed"
-        return jekf_tuning.identify(model, measurements, variant=variant, truth=truth, initial_load=initial_load)
+        return jekf_tuning.identify(
+            model, measurements, variant=variant, truth=truth, initial_load=initial_load, **kwargs
+        )
     raise InputError(f"method = {method!r}: expected mhe, jekf-seed or jekf-tuned")
 
 
