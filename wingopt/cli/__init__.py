@@ -24,6 +24,13 @@ EXIT_OK, EXIT_INPUT, EXIT_SOLVER = 0, 2, 3
 log = logging.getLogger("wingopt")
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line (exit code 2), with a pointer to --help."""
+
+    def error(self, message: str):  # noqa: D102 - argparse API
+        self.exit(EXIT_INPUT, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+
+
 def _common_options() -> argparse.ArgumentParser:
     common = argparse.ArgumentParser(add_help=False)
     g = common.add_argument_group("output verbosity")
@@ -46,7 +53,7 @@ def _command_modules():
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="wingopt",
         description="Control and estimation of flexible wings: plate morphing and membrane load identification.",
         epilog="Run 'wingopt COMMAND --help' for a command's options and an example.",

@@ -53,15 +53,22 @@ def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[float]]
 
 
 def check_writable(target: Path) -> Path:
-    """Raise :class:`OutputError` unless ``target``'s parent can take a new directory."""
+    """Raise :class:`OutputError` unless ``target`` can become a new (or replaced) directory."""
     target = Path(target).expanduser().resolve()
     if target.exists() and not target.is_dir():
         raise OutputError(f"out = {str(target)!r}: exists and is not a directory")
     parent = target.parent
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise OutputError(f"out = {str(target)!r}: directory {str(parent)!r} is not writable")
+    if not parent.is_dir():
+        raise OutputError(f"out = {str(target)!r}: {str(parent)!r} is a file, not a directory")
+    # Probe by creating a directory: permission bits alone say nothing for root or read-only mounts.
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".wingopt-probe-", dir=parent))
+    except OSError as exc:
+        raise OutputError(
+            f"out = {str(target)!r}: directory {str(parent)!r} is not writable ({exc.strerror})"
+        ) from None
     return target
 
 
@@ -79,8 +86,11 @@ class ResultDirectory:
         self._tmp: Path | None = None
 
     def __enter__(self) -> Path:
-        self.target.parent.mkdir(parents=True, exist_ok=True)
-        self._tmp = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.tmp-", dir=self.target.parent))
+        try:
+            self.target.parent.mkdir(parents=True, exist_ok=True)
+            self._tmp = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.tmp-", dir=self.target.parent))
+        except OSError as exc:
+            raise OutputError(f"out = {str(self.target)!r}: cannot create it ({exc.strerror})") from None
         return self._tmp
 
     def __exit__(self, exc_type, exc, tb) -> bool:
