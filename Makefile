@@ -5,6 +5,10 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
+# Single-threaded BLAS: the matrices here are small to medium, and on a shared 2-core machine
+# threaded BLAS was measured up to 10x slower (oversubscription). Override on the command line.
+BLAS_THREADS ?= 1
+RUN    := OPENBLAS_NUM_THREADS=$(BLAS_THREADS) OMP_NUM_THREADS=$(BLAS_THREADS) MKL_NUM_THREADS=$(BLAS_THREADS)
 
 .PHONY: demo test test-slow lint format bench clean install
 
@@ -17,13 +21,13 @@ $(STAMP): pyproject.toml
 install: $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/wingopt demo
+	$(RUN) $(BIN)/wingopt demo
 
 test: $(STAMP)
-	$(BIN)/python -m pytest
+	$(RUN) $(BIN)/python -m pytest
 
 test-slow: $(STAMP)
-	$(BIN)/python -m pytest -m slow
+	$(RUN) $(BIN)/python -m pytest -m slow
 
 lint: $(STAMP)
 	$(BIN)/ruff check wingopt tests examples benchmarks
@@ -34,7 +38,7 @@ format: $(STAMP)
 	$(BIN)/ruff check --fix wingopt tests examples benchmarks
 
 bench: $(STAMP)
-	for f in benchmarks/bench_*.py; do $(BIN)/python $$f || exit 1; done
+	for f in benchmarks/bench_*.py; do $(RUN) $(BIN)/python $$f || exit 1; done
 
 clean:
 	rm -rf $(VENV) wingopt-demo .pytest_cache .ruff_cache *.egg-info
