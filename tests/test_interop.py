@@ -35,3 +35,13 @@ def test_state_space_exports_to_python_control(membrane_models):
     np.testing.assert_allclose(
         control.dcgain(sys_c)[0, 0], np.linalg.solve(model.stiffness.toarray(), model.gram.toarray())[0, 0], rtol=1e-8
     )
+
+
+def test_vtk_accepts_callables(tmp_path, membrane_models):
+    meshio = pytest.importorskip("meshio")
+    from wingopt.results.vtk import export_vtk
+
+    model = membrane_models[(13, 7)]
+    path = export_vtk(tmp_path / "f.vtu", model.space, {"xy": lambda x, y: x * y}, grid=(5, 3))
+    mesh = meshio.read(path)
+    np.testing.assert_allclose(mesh.point_data["xy"], mesh.points[:, 0] * mesh.points[:, 1])

@@ -2,7 +2,40 @@
 
 Data flow: mesh/basis (:mod:`wingopt.fe`) -> FE operators (:mod:`wingopt.membrane`,
 :mod:`wingopt.plate`) -> state space (:mod:`wingopt.dynamics`) -> control QP
-(:mod:`wingopt.control`) or estimation (:mod:`wingopt.estimation`) -> results.
+(:mod:`wingopt.control`) or estimation (:mod:`wingopt.estimation`) -> results
+(:mod:`wingopt.results`).
+
+The main entry points are available at the top level (imported on first use)::
+
+    import wingopt as wo
+    plate = wo.load_problem("plate")
+    run = wo.morph(plate, "twist", method="qp")          # -> MorphResult
+    membrane = wo.load_problem("membrane")
+    est = wo.identify(membrane, load="L1", noise=0.01)    # -> IdentifyRun
 """
 
+from __future__ import annotations
+
+import importlib
+
 __version__ = "0.1.0"
+
+_LAZY = {
+    "load_problem": "wingopt.problem",
+    "parse_mesh": "wingopt.problem",
+    "build_model": "wingopt.models",
+    "morph": "wingopt.control.morph",
+    "write_morph_outputs": "wingopt.control.morph",
+    "identify": "wingopt.estimation.identify",
+    "write_identify_outputs": "wingopt.estimation.identify",
+    "read_measurements": "wingopt.estimation.csv_data",
+    "run_demo": "wingopt.demo",
+}
+
+__all__ = ["__version__", *_LAZY]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'wingopt' has no attribute {name!r}")

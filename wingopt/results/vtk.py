@@ -27,8 +27,8 @@ def export_vtk(
         Output file; the extension chooses the format (``.vtu`` recommended).
     space : TensorSpace
         The space the coefficients live in.
-    fields : mapping name -> coefficients ``(n,)``
-        Written as point data.
+    fields : mapping name -> coefficients ``(n,)`` or callable ``(x, y) -> values``
+        Written as point data (callables for fields in another basis, e.g. an estimated load).
     grid : (nx, ny)
         Sampling points per direction, edges included.
     warp : str, optional
@@ -43,7 +43,10 @@ def export_vtk(
     xs = np.linspace(0.0, space.width, nx)
     ys = np.linspace(0.0, space.height, ny)
     X, Y = np.meshgrid(xs, ys, indexing="ij")  # point index i * ny + j
-    values = {name: np.asarray(space.evaluate(c, X.ravel(), Y.ravel()), dtype=float) for name, c in fields.items()}
+    values = {
+        name: np.asarray(f(X.ravel(), Y.ravel()) if callable(f) else space.evaluate(f, X.ravel(), Y.ravel()), float)
+        for name, f in fields.items()
+    }
     Z = values[warp] if warp else np.zeros(X.size)
     points = np.column_stack([X.ravel(), Y.ravel(), Z])
     i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1), indexing="ij")
