@@ -165,11 +165,15 @@ class SplineBasis1D:
         """Sparse ``(len(x), n)`` values of the modified basis (or a derivative) at ``x``."""
         return (self.full_matrix(x, deriv) @ self.transform).tocsr()
 
-    def gram(self, deriv_u: int = 0, deriv_v: int = 0) -> sp.csr_matrix:
-        """Exact ``∫ B^(deriv_u) B^(deriv_v)^T dx`` over the interval, modified basis."""
+    def gram(self, deriv_u: int = 0, deriv_v: int = 0, other: SplineBasis1D | None = None) -> sp.csr_matrix:
+        """Exact ``∫ B^(deriv_u) C^(deriv_v)^T dx``, ``C`` = ``other``'s basis (default: this one).
+
+        ``other`` must have the same interval and elements (only its edge conditions may differ).
+        """
+        other = self if other is None else other
+        if (other.length, other.n_elements) != (self.length, self.n_elements):
+            raise InputError("gram: the two bases must have the same interval and elements")
         tq, wq = gauss_legendre(4)  # exact up to degree 7 >= 3 + 3
         x = (np.arange(self.n_elements)[:, None] + tq[None, :]).ravel() * self.h
         w = np.tile(wq * self.h, self.n_elements)
-        Bu = self.matrix(x, deriv_u)
-        Bv = self.matrix(x, deriv_v)
-        return (Bu.T @ sp.diags(w) @ Bv).tocsr()
+        return (self.matrix(x, deriv_u).T @ sp.diags(w) @ other.matrix(x, deriv_v)).tocsr()

@@ -27,7 +27,6 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from wingopt.fe.bspline import EdgeCondition, SplineBasis1D
 from wingopt.fe.space import Cells, TensorSpace
 
 __all__ = [
@@ -149,10 +148,12 @@ def _chunks(n: int, size: int):
         yield slice(start, min(start + size, n))
 
 
-def _kron_assemble(space: TensorSpace, terms) -> sp.csr_matrix:
-    out = sp.csr_matrix((space.n, space.n))
+def _kron_assemble(row: TensorSpace, col: TensorSpace, terms) -> sp.csr_matrix:
+    out = sp.csr_matrix((row.n, col.n))
     for c, du, dv in terms:
-        out = out + c * sp.kron(space.bx.gram(du.ax, dv.ax), space.by.gram(du.ay, dv.ay), format="csr")
+        gx = row.bx.gram(du.ax, dv.ax, col.bx)
+        gy = row.by.gram(du.ay, dv.ay, col.by)
+        out = out + c * sp.kron(gx, gy, format="csr")
     return out.tocsr()
 
 
@@ -182,14 +183,7 @@ def assemble(
     chunk : int
         Cells per batch, to bound memory.
     """
-    if method not in ("auto", "kron", "cells"):
-        raise ValueError(f"method = {method!r}: expected 'auto', 'kron' or 'cells'")
-    whole = cells is None and not data
-    if method == "kron" or (method == "auto" and whole and form.terms is not None):
-        if form.terms is None or not whole:
-            raise ValueError("the Kronecker path needs a separable form over the whole domain")
-        return _kron_assemble(space, form.terms)
-    return _restrict(_assemble_full(space, form, cells, data, order, chunk), space, space)
+    return assemble_mixed(space, space, form, cells, data, order, method, chunk)
 
 
 def _restrict(full: sp.csr_matrix, row_space: TensorSpace, col_space: TensorSpace) -> sp.csr_matrix:
@@ -253,15 +247,7 @@ def assemble_mixed(
     if method == "kron" or (method == "auto" and whole and form.terms is not None):
         if form.terms is None or not whole:
             raise ValueError("the Kronecker path needs a separable form over the whole domain")
-        out = sp.csr_matrix((row_space.n, col_space.n))
-        free = EdgeCondition.FREE
-        fx = SplineBasis1D(row_space.bx.length, row_space.bx.n_elements, free, free)
-        fy = SplineBasis1D(row_space.by.length, row_space.by.n_elements, free, free)
-        for c, du, dv in form.terms:
-            gx = row_space.bx.transform.T @ fx.gram(du.ax, dv.ax) @ col_space.bx.transform
-            gy = row_space.by.transform.T @ fy.gram(du.ay, dv.ay) @ col_space.by.transform
-            out = out + c * sp.kron(gx, gy, format="csr")
-        return out.tocsr()
+        return _kron_assemble(row_space, col_space, form.terms)
     return _restrict(_assemble_full(row_space, form, cells, data, order, chunk), row_space, col_space)
 
 
