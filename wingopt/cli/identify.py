@@ -11,12 +11,11 @@ from __future__ import annotations
 import argparse
 import json
 import re
-import time
 
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.results import ResultDirectory, to_jsonable, write_csv, write_json
+from wingopt.results import to_jsonable
 
 ORDER = 30
 
@@ -29,10 +28,8 @@ examples:
   wingopt identify membrane --load L3 --noise 5 --seed 2 --load-space free --out runs/L3free
   wingopt identify membrane --load L2 --noise 1 --seed 0 --method jekf --out runs/L2jekf
   wingopt identify membrane --data wind_tunnel.csv --out runs/tunnel --json
+  wingopt identify membrane --data gusty.csv --load-model random_walk --load-timescale 0.5 --out runs/gust
   (CSV: header 't,S1,S2,S3,S4', time in s, dimensionless stretch; empty cells = missing samples)"""
-
-GRID = (57, 29)
-"""Points (x, y) of the uniform grid of ``load.csv``, edges included."""
 
 
 def parse_noise(text: str) -> float:
@@ -96,9 +93,31 @@ def register(sub, common) -> None:
         help="prior std of the initial modal state relative to the data's amplitude (default 1: weak), or "
         "'evidence': chosen among 1, 0.1, 0.01, 0.001 by the first window's evidence (helps --load-space free)",
     )
-    g.add_argument("--window", type=int, default=200, help="window length, samples (default 200)")
-    g.add_argument("--stride", type=int, default=50, help="samples per window step (default 50)")
-    g.add_argument("--load-model", choices=("constant", "random_walk"), default="constant")
+    g.add_argument(
+        "--window",
+        default="0.2s",
+        help="window length: seconds with a unit (0.2s, 200ms) or a whole number of samples (200); "
+        "default 0.2s (200 samples at 1 kHz, 60 at 300 Hz)",
+    )
+    g.add_argument("--stride", default="0.05s", help="window step, same units as --window (default 0.05s)")
+    g.add_argument(
+        "--load-model",
+        choices=("constant", "random_walk"),
+        default="constant",
+        help="constant (default): a steady load, information accumulates, a change restarts the estimate; "
+        "random_walk: a load that varies in time (amplitude time scale --load-timescale)",
+    )
+    g.add_argument(
+        "--load-timescale",
+        type=float,
+        default=1.0,
+        help="random walk: time (s) over which the load's amplitude may change by its own size (default 1)",
+    )
+    g.add_argument(
+        "--no-consistency",
+        action="store_true",
+        help="do not skip an unexplained start (load onset) nor restart on data inconsistent with the estimate",
+    )
     g.add_argument("--lambda", dest="lam", type=float, help="fixed Tikhonov weight (default: from the data)")
     g.add_argument("--lambda-rule", choices=("robust", "discrepancy", "gcv"), default="robust")
     g.add_argument("--modes", type=int, default=40, help="membrane modes kept (default 40)")
@@ -126,14 +145,36 @@ def state_prior_settings(text: str) -> dict:
     return {"state_prior": value}
 
 
+def parse_duration(text: str, name: str) -> dict:
+    """``--window``/``--stride`` value: ``"0.2s"``/``"200ms"`` (seconds) or ``"200"`` (samples).
+
+    Returns the ``MHESettings`` fields: ``{name + "_s": seconds}`` or ``{name: samples}``.
+    """
+    s = str(text).strip().lower()
+    m = re.fullmatch(r"([0-9]*\.?[0-9]+(?:e[-+]?[0-9]+)?)\s*(s|ms)?", s)
+    if not m:
+        raise InputError(f"--{name} {text!r}: expected seconds with a unit (0.2s, 200ms) or whole samples (200)")
+    value, unit = float(m.group(1)), m.group(2)
+    if unit is None:
+        if value != int(value) or value < 1:
+            raise InputError(f"--{name} {text!r}: a bare number is samples (a whole number); add 's' for seconds")
+        return {name: int(value)}
+    seconds = value / 1000.0 if unit == "ms" else value
+    if not seconds > 0:
+        raise InputError(f"--{name} {text!r}: expected a positive duration")
+    return {f"{name}_s": seconds}
+
+
 def _settings(args):
     from wingopt.estimation.mhe import MHESettings
 
     return MHESettings(
         **state_prior_settings(args.state_prior),
-        window=args.window,
-        stride=args.stride,
+        **parse_duration(args.window, "window"),
+        **parse_duration(args.stride, "stride"),
         load_model=args.load_model,
+        load_timescale=args.load_timescale,
+        consistency=not args.no_consistency,
         modes=args.modes,
         load_space=args.load_space,
         backend=args.backend,
@@ -145,9 +186,7 @@ def _settings(args):
 
 
 def run(args) -> int:
-    from wingopt.estimation.csv_data import read_measurements
-    from wingopt.estimation.studies import CleanCases, evaluate, load_field, protocol_sign, run_method
-    from wingopt.membrane import MembraneModel
+    from wingopt.estimation.identify import identify, write_identify_outputs
     from wingopt.problem import load_problem, parse_mesh
     from wingopt.results.writer import check_writable
 
@@ -155,119 +194,30 @@ def run(args) -> int:
     problem = load_problem(args.problem)
     if problem.kind != "membrane":
         raise InputError(f"problem = {args.problem!r}: identify needs a membrane problem, got kind {problem.kind!r}")
-    if args.mesh:
-        problem = problem.with_mesh(parse_mesh(args.mesh))
-    settings = _settings(args) if args.method == "mhe" else None
     if args.method != "mhe" and (args.backend != "numpy" or args.load_space != "fixed" or args.state_prior != "1"):
         raise InputError("--backend, --load-space and --state-prior apply to --method mhe only")
-    model = MembraneModel.from_problem(problem)
-    summary: dict = {"problem": problem.name, "method": args.method, "mesh": list(problem.nodes)}
-    case = None
-    initial_load = args.initial_load
-    if args.load:
-        noise = parse_noise(args.noise)
-        if not args.t_end > 0:
-            raise InputError(f"t-end = {args.t_end!r}: expected a positive duration (s)")
-        truth_nodes = None if args.same_mesh else parse_mesh(args.truth_mesh)
-        case = CleanCases(problem, truth_nodes, args.t_end).case(args.load, noise, args.seed)
-        # The estimators are not told the simulated noise level: they estimate it from the data
-        # (or take --noise-std), as they would have to with measurements.
-        meas = _with_noise(case.measurements, args.noise_std)
-        if initial_load is None:
-            initial_load = protocol_sign(args.load) * abs(problem.identification.initial_load)
-        summary.update(
-            load_case=args.load,
-            noise_percent=100 * noise,
-            seed=args.seed,
-            truth_mesh=list(truth_nodes or problem.nodes),
-            protocol="same-mesh (seed)" if args.same_mesh else "fine-mesh truth",
-        )
-    else:
-        meas, report = read_measurements(args.data, problem.sensor_names)
-        summary["data"] = report.as_dict()
-        meas = _with_noise(meas, args.noise_std)
-    t0 = time.perf_counter()
-    result = run_method(
-        "mhe" if args.method == "mhe" else ("jekf-tuned" if args.method == "jekf-tuned" else "jekf-seed"),
-        model,
-        meas,
-        settings,
-        initial_load=initial_load,
-        truth=case,
+    settings = _settings(args) if args.method == "mhe" else None
+    if args.load and not args.t_end > 0:
+        raise InputError(f"t-end = {args.t_end!r}: expected a positive duration (s)")
+    if args.noise_std is not None and not (np.isfinite(args.noise_std) and args.noise_std > 0):
+        raise InputError(f"noise-std = {args.noise_std!r}: expected a positive number (sensor output units)")
+    run_ = identify(
+        problem,
+        load=args.load,
+        noise=parse_noise(args.noise) if args.load else 0.0,
+        seed=args.seed,
+        data=args.data,
+        method=args.method,
+        truth_nodes=None if args.same_mesh else parse_mesh(args.truth_mesh),
+        t_end=args.t_end,
+        nodes=parse_mesh(args.mesh) if args.mesh else None,
+        initial_load=args.initial_load,
+        noise_std=args.noise_std,
+        mhe_settings=settings,
     )
-    wall = time.perf_counter() - t0
-    lift = float(result.lift[-1])
-    std = None if result.lift_std is None else float(result.lift_std[-1])
-    summary.update(
-        lift_N=lift,
-        lift_std_N=std,
-        wall_s=wall,
-        regularization=result.regularization,
-        samples=int(meas.count),
-        missing_samples=int(np.count_nonzero(meas.missing)),
-        estimator=to_jsonable({k: v for k, v in result.info.items() if k not in ("iterations_per_window",)}),
-    )
-    if case is not None:
-        rec = evaluate(case, result, model, args.method)
-        summary.update(
-            load_error=rec.load_error,
-            deflection_error=rec.deflection_error,
-            true_lift_N=rec.true_lift,
-            lift_error=rec.lift_error,
-            lift_error_note="|lift - true lift| / ∫|P| (L2 has no net lift)",
-            sign_ok=rec.sign_ok,
-        )
-    P = load_field(result, model)
-    xs = np.linspace(0, problem.width, GRID[0])
-    ys = np.linspace(0, problem.height, GRID[1])
-    X, Y = np.meshgrid(xs, ys)
-    Pg = P(X, Y)
-    with ResultDirectory(args.out) as tmp:
-        write_json(tmp / "summary.json", summary)
-        write_csv(tmp / "load.csv", ["x", "y", "pressure_Pa"], zip(X.ravel(), Y.ravel(), Pg.ravel()))
-        if result.lift_std is not None:
-            write_csv(tmp / "lift.csv", ["t", "lift_N", "lift_std_N"], zip(result.t, result.lift, result.lift_std))
-        else:
-            write_csv(tmp / "lift.csv", ["t", "lift_N"], zip(result.t, result.lift))
-        if not args.no_plots:
-            _plots(tmp, result, model, case, X, Y, Pg, summary)
-    _print(summary, args)
+    write_identify_outputs(run_, args.out, plots=not args.no_plots)
+    _print(to_jsonable(run_.summary()), args)
     return 0
-
-
-def _with_noise(meas, std):
-    """The measurements with the noise level ``std`` (``None``: unknown, to be estimated)."""
-    import dataclasses
-
-    if std is None:
-        return dataclasses.replace(meas, noise_std=None)
-    if not (np.isfinite(std) and std > 0):
-        raise InputError(f"noise-std = {std!r}: expected a positive number (sensor output units)")
-    return dataclasses.replace(meas, noise_std=np.full(len(meas.sensor_names), float(std)))
-
-
-def _plots(tmp, result, model, case, X, Y, Pg, summary) -> None:
-    from wingopt.estimation.studies import load_field
-    from wingopt.plots.identify import plot_errors, plot_lift, plot_load_field
-
-    truth = case.load(X, Y) if case is not None else None
-    title = f"{summary.get('load_case', 'data')} · {summary['method']}"
-    first = None
-    if result.method == "mhe":
-        first = float(result.t[min(result.info["window"], result.t.size) - 1] - result.t[0])
-    plot_load_field(tmp / "load_field.png", X, Y, Pg, truth, title)
-    true_lift = case.true_lift if case else None
-    plot_lift(tmp / "lift.png", result.t, result.lift, result.lift_std, true_lift, title, first)
-    if case is not None:
-        # Error histories on a subsample of the times (each needs two integrals on the truth mesh).
-        idx = np.unique(np.linspace(0, result.t.size - 1, 41).astype(int))
-        t_case = case.trajectory.t
-        le, de = [], []
-        for k in idx:
-            kt = int(np.argmin(np.abs(t_case - result.t[k])))
-            le.append(case.load_error(load_field(result, model, k)))
-            de.append(case.deflection_error(model.field(result.deflection[k]), kt))
-        plot_errors(tmp / "errors.png", result.t[idx], np.array(le), np.array(de), title, first)
 
 
 def _print(summary: dict, args) -> None:

@@ -139,6 +139,8 @@ class CaseRecord:
     wall_s: float
     oracle_regularization: float | None = None
     oracle_load_error: float | None = None
+    onset_skipped_s: float | None = None
+    restarts: int | None = None
 
     def as_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -158,6 +160,7 @@ def evaluate(case: SimulatedCase, result: IdentificationResult, model: MembraneM
     true = case.true_lift
     std = None if result.lift_std is None else float(result.lift_std[-1])
     corr = integrate(space, lambda x, y: case.load(x, y) * P(x, y), order=8)
+    onset = result.info.get("onset")
     return CaseRecord(
         load=case.load.name,
         noise=case.noise_fraction,
@@ -173,6 +176,9 @@ def evaluate(case: SimulatedCase, result: IdentificationResult, model: MembraneM
         sign_ok=bool(corr > 0),
         regularization=float(result.regularization),
         wall_s=float(result.wall_s),
+        # The MHE's consistency tests (a skipped load onset, restarts on a changed load).
+        onset_skipped_s=None if onset is None else float(onset["t_start"] - case.trajectory.t[0]),
+        restarts=None if "restarts" not in result.info else len(result.info["restarts"]),
     )
 
 
@@ -343,6 +349,9 @@ def summarize(records: Sequence[CaseRecord]) -> list[dict]:
             v = np.array([getattr(r, key) for r in rs])
             row[key] = {"mean": float(v.mean()), "min": float(v.min()), "max": float(v.max()), "std": float(v.std())}
         row["sign_ok"] = int(sum(r.sign_ok for r in rs))
+        if any(r.restarts is not None for r in rs):
+            row["restarts"] = int(sum(r.restarts or 0 for r in rs))
+            row["onsets_skipped"] = int(sum(bool(r.onset_skipped_s) for r in rs))
         cov = [r.covered for r in rs if r.covered is not None]
         row["covered"] = int(sum(cov)) if cov else None
         orc = [r.oracle_load_error for r in rs if r.oracle_load_error is not None]
