@@ -196,3 +196,31 @@ def plot_morph(out: Path, result, compare_with=None) -> list[Path]:
         plot_strains(out / "strains.png", result),
         plot_snapshots(out / "snapshots.png", result),
     ]
+
+
+def plot_functional_gains(path: Path, profiles: dict) -> Path:
+    """Bending and velocity gains of PZ1/PZ4/PZ7 along ``x = W/2`` for several meshes (Figs. 5.12–5.17).
+
+    ``profiles``: mesh label -> :func:`~wingopt.control.riccati_large.gain_profiles` output; meshes
+    in progressively darker grey, as in the seed.
+    """
+    plt = _pyplot()
+    labels = list(profiles)
+    first = profiles[labels[0]]
+    npatch = len(first["patches"])
+    fig, axes = plt.subplots(2, npatch, figsize=(4.2 * npatch, 6.4), sharex=True, squeeze=False)
+    greys = np.linspace(0.7, 0.0, len(labels))
+    for j in range(npatch):
+        for lab, g in zip(labels, greys):
+            pr = profiles[lab]
+            axes[0][j].plot(pr["y"], pr["bending"][j], color=str(g), lw=1.4, label=lab)
+            axes[1][j].plot(pr["y"], pr["velocity"][j], color=str(g), lw=1.4, label=lab)
+        axes[0][j].set_title(f"bending gain, {first['patches'][j]}", fontsize=10)
+        axes[1][j].set_title(f"velocity gain, {first['patches'][j]}", fontsize=10)
+        axes[1][j].set_xlabel("spanwise position y (m), x = W/2")
+        for a in (axes[0][j], axes[1][j]):
+            a.grid(alpha=0.3)
+    axes[0][0].set_ylabel("d^2 k_b / dy^2")
+    axes[1][0].set_ylabel("k_v")
+    axes[0][-1].legend(fontsize=8)
+    return _save(fig, path)

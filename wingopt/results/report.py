@@ -8,9 +8,9 @@ from __future__ import annotations
 import base64
 import html
 import io
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
 
 __all__ = ["Report", "figure_png"]
 
@@ -55,16 +55,16 @@ class Report:
     title: str
     parts: list[str] = field(default_factory=list)
 
-    def heading(self, text: str, level: int = 2) -> "Report":
+    def heading(self, text: str, level: int = 2) -> Report:
         self.parts.append(f"<h{level}>{html.escape(text)}</h{level}>")
         return self
 
-    def paragraph(self, text: str, css_class: str | None = None) -> "Report":
+    def paragraph(self, text: str, css_class: str | None = None) -> Report:
         cls = f' class="{css_class}"' if css_class else ""
         self.parts.append(f"<p{cls}>{html.escape(text)}</p>")
         return self
 
-    def table(self, header: Sequence[str], rows: Sequence[Sequence], caption: str = "") -> "Report":
+    def table(self, header: Sequence[str], rows: Sequence[Sequence], caption: str = "") -> Report:
         out = ["<table>"]
         if caption:
             out.append(f"<caption>{html.escape(caption)}</caption>")
@@ -75,7 +75,7 @@ class Report:
         self.parts.append("\n".join(out))
         return self
 
-    def figure(self, png: bytes | Path, caption: str = "") -> "Report":
+    def figure(self, png: bytes | Path, caption: str = "") -> Report:
         """Embed a PNG (bytes or a file path) as a data URI."""
         data = Path(png).read_bytes() if isinstance(png, (str, Path)) else png
         uri = "data:image/png;base64," + base64.b64encode(data).decode("ascii")
