@@ -233,6 +233,21 @@ def test_compare_command_writes_records_and_resumes(small_file, tmp_path, capsys
     assert main(["compare", str(small_file), "--methods", "kalman", "--out", str(out)]) == 2
 
 
+def test_compare_resume_counts_a_repeated_run_once(small_file, tmp_path, capsys):
+    """The sign study re-runs the table's 5 % seeds and appends them again: a resumed report must
+    still count each (load, noise, seed, method) once (it said 10/10 for 5 seeds before the fix)."""
+    out = tmp_path / "cmp"
+    argv = ["compare", str(small_file), "--loads", "L1", "--noise", "5", "--seeds", "1", "--methods", "mhe"]
+    argv += ["--no-oracle", "--truth-mesh", "25x13", "--sign-seeds", "2", "--out", str(out)]
+    assert main(argv) == 0
+    first = json.loads((out / "summary.json").read_text())
+    assert len((out / "records.jsonl").read_text().splitlines()) == 3  # table seed 0, sign seeds 0 and 1
+    assert main(argv + ["--resume"]) == 0
+    again = json.loads((out / "summary.json").read_text())
+    assert again["comparison"][0]["seeds"] == first["comparison"][0]["seeds"] == 1
+    assert again["sign_and_band"][0]["seeds"] == first["sign_and_band"][0]["seeds"] == 2
+
+
 def test_state_prior_option():
     from wingopt.cli.identify import state_prior_settings
     from wingopt.errors import InputError

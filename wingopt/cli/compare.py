@@ -72,11 +72,17 @@ def _load_records(path: Path):
 
     if not path.exists():
         return []
-    recs = []
+    # One record per (load, noise, seed, method): the sign study re-runs the table's 5 % seeds and
+    # appends them again, and a resumed run must not count them twice (first one kept: the table's,
+    # which carries the oracle fields).
+    recs, seen = [], set()
     for line in path.read_text().splitlines():
         if line.strip():
             d = json.loads(line)
-            recs.append(CaseRecord(**{k: d.get(k) for k in CaseRecord.__dataclass_fields__}))
+            key = (d.get("load"), d.get("noise"), d.get("seed"), d.get("method"))
+            if key not in seen:
+                seen.add(key)
+                recs.append(CaseRecord(**{k: d.get(k) for k in CaseRecord.__dataclass_fields__}))
     return recs
 
 

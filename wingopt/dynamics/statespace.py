@@ -163,8 +163,15 @@ class SecondOrderSystem:
         if n <= 200 or count > n // 4:
             lam, Phi = sla.eigh(_dense(self.stiffness), _dense(self.mass), subset_by_index=(0, count - 1))
         else:
+            # A fixed start vector: ARPACK's default is random, which made results differ in the
+            # last digits from run to run.
             lam, Phi = spla.eigsh(
-                sp.csc_matrix(self.stiffness), k=count, M=sp.csc_matrix(self.mass), sigma=0.0, which="LM"
+                sp.csc_matrix(self.stiffness),
+                k=count,
+                M=sp.csc_matrix(self.mass),
+                sigma=0.0,
+                which="LM",
+                v0=np.ones(n),
             )
             order = np.argsort(lam)
             lam, Phi = lam[order], Phi[:, order]
