@@ -445,3 +445,25 @@ def test_state_prior_chosen_by_the_evidence(small_model, small_case):
     assert rest.state_prior == 1.0
     with pytest.raises(InputError, match="state_prior_choices"):
         MHESettings(state_prior_choices=(1.0, 0.0))
+
+
+def test_random_walk_covariance_is_amplitude_plus_slow_shape(small_estimator):
+    """``Q(tau) = |f^|^2 [(tau/T_a) v v^T + (tau/T_s) G^-1]`` (mhe_load_model): the precision is its
+    inverse, the amplitude direction has relative variance ``tau/T_a + tau/T_s`` and a zero
+    reference load is refused with an error naming the load model."""
+    from wingopt.errors import InputError
+    from wingopt.estimation.mhe_load_model import RandomWalk, l2_metric
+
+    red = small_estimator.reduced
+    G = l2_metric(red)
+    u = np.linalg.solve(G, np.ones(red.m))  # any reference load
+    rw = RandomWalk.build(red, 0.5, 50.0, u)
+    tau = 0.05
+    size2 = float(u @ G @ u)
+    Q = size2 * ((tau / 0.5) * np.outer(u, u) / size2 + (tau / 50.0) * np.linalg.inv(G))
+    np.testing.assert_allclose(rw.precision(tau) @ Q, np.eye(red.m), atol=1e-8)
+    # Relative variance of the amplitude (the component along u in the metric G).
+    amp = (G @ u) / size2
+    assert amp @ u == pytest.approx(1.0) and amp @ Q @ amp == pytest.approx(tau / 0.5 + tau / 50.0, rel=1e-10)
+    with pytest.raises(InputError, match="random_walk"):
+        RandomWalk.build(red, 0.5, 50.0, np.zeros(red.m))

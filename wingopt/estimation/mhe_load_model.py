@@ -39,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wingopt.errors import InputError
 from wingopt.estimation.mhe_model import ReducedModel
 
 __all__ = ["RandomWalk", "l2_metric"]
@@ -87,7 +88,10 @@ class RandomWalk:
         G = l2_metric(reduced) if metric is None else metric
         size2 = float(u_ref @ G @ u_ref)
         if not (np.isfinite(size2) and size2 > 0):
-            raise ValueError("random walk: the reference load has no size")
+            raise InputError(
+                f"load_model = 'random_walk': the start-up's load estimate has no size ({size2!r}), so the "
+                "random walk has nothing to scale to; is there a load in the data? (try load_model='constant')"
+            )
         return cls(G / size2, (G @ u_ref) / size2, float(timescale), float(shape_timescale), float(np.sqrt(size2)))
 
     def precision(self, tau: float) -> np.ndarray:
