@@ -6,16 +6,10 @@ from pathlib import Path
 
 import numpy as np
 
+from wingopt.plots import pyplot as _pyplot
+from wingopt.plots import save as _save
+
 __all__ = ["plot_load_field", "plot_lift", "plot_errors"]
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def plot_load_field(
@@ -36,10 +30,7 @@ def plot_load_field(
         fig.colorbar(im, ax=ax, label="Pa", shrink=0.8)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return _save(fig, path)
 
 
 def _first_window(ax, first_window_s: float | None) -> None:
@@ -75,10 +66,7 @@ def plot_lift(
     ax.legend(loc="best")
     if title:
         ax.set_title(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return _save(fig, path)
 
 
 def plot_errors(
@@ -101,7 +89,4 @@ def plot_errors(
     ax.legend(loc="best")
     if title:
         ax.set_title(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return _save(fig, path)

@@ -14,19 +14,13 @@ from pathlib import Path
 
 import numpy as np
 
+from wingopt.plots import pyplot as _pyplot
+from wingopt.plots import save as _save
+
 __all__ = ["plot_morph", "plot_voltages", "plot_tip_corners", "plot_shape_error", "plot_surface", "plot_strains"]
 
 GRID = (31, 121)
 """Evaluation grid (x, y) of the surface and strain figures."""
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def _label(result) -> str:
@@ -36,13 +30,6 @@ def _label(result) -> str:
         hi = "+inf" if result.vmax is None else f"{result.vmax:g}"
         lim = f" [{lo}, {hi}] V"
     return f"{result.method}{lim}"
-
-
-def _save(fig, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    _pyplot().close(fig)
-    return Path(path)
 
 
 def plot_voltages(path: Path, results: list) -> Path:
@@ -131,9 +118,7 @@ def plot_surface(path: Path, results: list) -> Path:
     ax3.set_zlabel("w (mm)")
     ax3.set_title(f"final ({fields[1][0]}), target wireframe", fontsize=9)
     fig.suptitle(f"{results[0].shape}: final surface")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return Path(path)
+    return _save(fig, path, tight=False)  # tight_layout cannot place the 3-D axes and left colour bar
 
 
 def plot_strains(path: Path, result) -> Path:
