@@ -4,7 +4,7 @@ Truth simulated on 49x25, estimator on 25x13 (spec §2: no inverse crime). For e
 seed-faithful filter's lambda is found once by the seed's method (Nelder–Mead on the noise-free
 run, USING THE TRUTH), then used at both noise levels; the tuned filter (zero initial load, R from
 the data's noise level) chooses lambda per record from the data only (discrepancy rule of
-:mod:`wingopt.estimation.jekf_tuning`).
+:mod:`wingopt.estimation.jekf.tuning`).
 
 Prints final load / deflection / lift errors (mean and spread over seeds), the lambdas, and the
 filter's seconds per sample against the 1 ms sample period. Takes tens of minutes on 2 cores::
@@ -29,11 +29,12 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from wingopt.estimation import Measurements, simulate_case  # noqa: E402
+from wingopt.estimation import Measurements  # noqa: E402
 from wingopt.estimation.jekf import JEKFSettings, JointEKF  # noqa: E402
-from wingopt.estimation.jekf_tuning import cached_seed_lambda, select_lambda  # noqa: E402
+from wingopt.estimation.jekf.tuning import cached_seed_lambda, select_lambda  # noqa: E402
 from wingopt.membrane import MembraneModel, add_noise  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
+from wingopt.workflows.protocols import simulate_case  # noqa: E402
 
 # Seed's Table (spec §5): final load error at 1 % / 5 % noise, 25x13, 1 s.
 SEED_TABLE = {"L1": (1.343e-4, 0.2166), "L2": (0.1282, 0.1012), "L3": (0.05672, 0.05448)}

@@ -29,10 +29,10 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from wingopt.estimation.mhe import MHESettings, MovingHorizonEstimator  # noqa: E402
-from wingopt.estimation.protocol import simulate_case  # noqa: E402
 from wingopt.estimation.studies import load_field  # noqa: E402
 from wingopt.membrane import MembraneModel  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
+from wingopt.workflows.protocols import simulate_case  # noqa: E402
 
 CLOCK = time.perf_counter
 """Wall clock by default; ``--cpu`` switches to this process's CPU time (a shared machine's load
@@ -117,7 +117,7 @@ def main() -> None:
         row(f"  {modes or 'all 325'} modes", setup, run, r)
 
     if not args.skip_jekf:
-        from wingopt.estimation import jekf_tuning
+        from wingopt.estimation import jekf as jekf_presets
         from wingopt.estimation.jekf import JEKFSettings, jekf_identify
 
         print("\nJEKF (seed's filter, all modes, modal block structure):")
@@ -126,7 +126,7 @@ def main() -> None:
         t1 = CLOCK()
         row("  JEKF, one run at fixed lambda", 0.0, t1 - t0, r)
         t0 = CLOCK()
-        r = jekf_tuning.identify(model, meas, variant="tuned", initial_load=200.0)
+        r = jekf_presets.identify(model, meas, variant="tuned", initial_load=200.0)
         t1 = CLOCK()
         row("  tuned JEKF incl. its data-only lambda search", 0.0, t1 - t0, r)
     print(f"\nreference: the sample period is 1.0e-03 s; first row's load error {err:.4f}")

@@ -26,8 +26,9 @@ import time
 
 import numpy as np
 
-from wingopt.control.closed_loop import make_plant, simulate_closed_loop
+from wingopt.control.closed_loop import simulate_closed_loop
 from wingopt.control.mpc import make_qp_controller
+from wingopt.control.plant import make_plant
 from wingopt.plate import PlateModel
 from wingopt.problem import load_problem, parse_mesh
 

@@ -91,7 +91,7 @@ class _Probe(MovingHorizonEstimator):
 
     def __init__(self, model, settings, load_space):
         super().__init__(model, settings)
-        from wingopt.estimation.mhe_model import ReducedModel
+        from wingopt.estimation.mhe.model import ReducedModel
 
         self.load_space = load_space
         self.reduced = ReducedModel.build(model, load_space, settings.modes)

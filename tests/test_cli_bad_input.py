@@ -105,8 +105,8 @@ def test_nan_sensor_rows_are_skipped_and_counted(tmp_path):
 
 
 def test_api_errors_name_the_field():
-    from wingopt.control.morph import morph
-    from wingopt.estimation.identify import identify
+    from wingopt.workflows.identify import identify
+    from wingopt.workflows.morph import morph
 
     plate, membrane = load_problem("plate"), load_problem("membrane")
     with pytest.raises(InputError, match="shape = 'loop'"):

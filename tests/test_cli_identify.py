@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from wingopt.cli import main
-from wingopt.estimation.protocol import simulate_case
 from wingopt.problem import PROBLEMS_DIR, load_problem
+from wingopt.workflows.protocols import simulate_case
 
 FAST = ["--window", "100", "--stride", "50", "--modes", "20", "--truth-mesh", "25x13", "--t-end", "0.3"]
 
@@ -191,6 +191,32 @@ def test_identify_with_the_tuned_jekf(small_file, tmp_path, capsys):
     summary = json.loads(capsys.readouterr().out)
     assert summary["method"] == "jekf-tuned" and summary["load_error"] < 0.1
     assert (out / "lift.csv").exists()
+
+
+@pytest.mark.parametrize("method", ["jekf", "jekf-tuned", "mhe"])
+def test_a_fixed_lambda_reaches_every_method(small_file, tmp_path, capsys, method):
+    """``--lambda X`` is the estimator's lambda for every method (it was silently ignored by the JEKF)."""
+    out = tmp_path / method
+    argv = ["identify", str(small_file), "--load", "L1", "--noise", "1", "--method", method, "--lambda", "3.5e-7"]
+    extra = FAST if method == "mhe" else ["--truth-mesh", "25x13", "--t-end", "0.2"]
+    assert main(argv + extra + ["--no-plots", "--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["regularization"] == pytest.approx(3.5e-7, rel=1e-12)
+
+
+def test_lambda_rules_have_distinct_names_per_method(small_file, tmp_path, capsys):
+    from wingopt.estimation.lambda_rules import resolve
+
+    # One word, two rules: "discrepancy" was Morozov's principle for the MHE and a likelihood-ratio
+    # test on late innovations for the JEKF. Each now has its own name; the old word still resolves.
+    assert resolve("discrepancy", "mhe").name == "morozov"
+    assert resolve("discrepancy", "jekf").name == "late-innovation-lr"
+    assert resolve(None, "mhe").name == "knee" and resolve(None, "jekf").name == "late-innovation-lr"
+    assert resolve("seed-nelder-mead", "jekf-seed").uses_truth
+    argv = ["identify", str(small_file), "--load", "L1", "--method", "jekf-tuned", "--lambda-rule", "gcv"]
+    assert main(argv + ["--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert "the jekf estimator accepts late-innovation-lr" in err and len(err.strip().splitlines()) == 1
 
 
 def test_options_of_the_mhe_only_are_refused_for_the_jekf(small_file, tmp_path, capsys):

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from wingopt.control.closed_loop import Controller, make_plant, simulate_closed_loop
+from wingopt.control.closed_loop import Controller, simulate_closed_loop
+from wingopt.control.plant import make_plant
 from wingopt.control.tracking import make_lqr_controller
 from wingopt.errors import InputError
 from wingopt.plate import PlateModel

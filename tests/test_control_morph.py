@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from wingopt.cli import main
-from wingopt.control.morph import METHODS, load_factory, morph, resolve_limits, write_morph_outputs
 from wingopt.errors import InputError
 from wingopt.problem import load_problem
+from wingopt.workflows.morph import METHODS, load_factory, morph, resolve_limits, write_morph_outputs
 
 
 @pytest.fixture(scope="module")
@@ -49,11 +49,20 @@ def test_outputs_and_comparison(twist7, problem, tmp_path):
 
 
 def test_limits_per_method(problem):
-    assert resolve_limits(problem, "lqr") == (None, None)
-    assert resolve_limits(problem, "lqr", vmax=1500) == (None, 1500.0)
-    assert resolve_limits(problem, "qp") == (-500.0, 1500.0)
+    def pair(limits):
+        return limits.scalar("lower"), limits.scalar("upper")
+
+    assert pair(resolve_limits(problem, "lqr")) == (None, None)
+    assert resolve_limits(problem, "lqr").is_unlimited
+    assert pair(resolve_limits(problem, "lqr", vmax=1500)) == (None, 1500.0)
+    assert pair(resolve_limits(problem, "qp")) == (-500.0, 1500.0)
+    assert resolve_limits(problem, "qp").lower.shape == (9,)
     with pytest.raises(InputError, match="vmin < vmax"):
         resolve_limits(problem, "lqr", 5.0, 1.0)
+    with pytest.raises(InputError, match="vmin < vmax"):  # equal limits are no range (was accepted by one check)
+        resolve_limits(problem, "qp", 10.0, 10.0)
+    with pytest.raises(InputError, match="finite"):
+        resolve_limits(problem, "lqr", float("-inf"), 1.0)
 
 
 def test_methods_and_factories():

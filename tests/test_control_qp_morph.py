@@ -6,9 +6,9 @@ Fast checks on 7x31; the 13x61 headline is ``@pytest.mark.slow``.
 import numpy as np
 import pytest
 
-from wingopt.control.morph import morph
 from wingopt.plate import PlateModel
 from wingopt.problem import load_problem
+from wingopt.workflows.morph import morph
 
 VMIN, VMAX = -500.0, 1500.0
 SHAPES = ("twist", "camber", "bending")

@@ -10,18 +10,21 @@ import pytest
 
 from wingopt.dynamics import zoh
 from wingopt.errors import InputError
-from wingopt.estimation import Measurements, simulate_case
-from wingopt.estimation.jekf import JEKFSettings, JointEKF, jekf_identify, joint_transition
-from wingopt.estimation.jekf_tuning import (
-    estimate_noise_std,
+from wingopt.estimation import Measurements
+from wingopt.estimation.jekf import (
+    JEKFSettings,
+    JointEKF,
     identify,
-    noise_free,
-    noise_variance,
+    jekf_identify,
+    joint_transition,
     seed_lambda,
     select_lambda,
     tuned_identify,
 )
+from wingopt.estimation.jekf.presets import noise_free
+from wingopt.estimation.noise import JEKF_NOISE, estimate_noise_std, noise_variance
 from wingopt.membrane import MembraneModel, bubble, load_case, simulate_response
+from wingopt.workflows.protocols import simulate_case
 
 COARSE = (13, 7)
 TRUTH = (25, 13)
@@ -185,7 +188,7 @@ def test_gelb_rule_adds_process_noise_to_the_load_block(coarse):
 
 
 def test_noise_estimate_from_the_data(l1_case):
-    est = estimate_noise_std(l1_case.measurements)
+    est = estimate_noise_std(l1_case.measurements.values, JEKF_NOISE)
     np.testing.assert_allclose(est, l1_case.measurements.noise_std, rtol=0.2)  # measured +1 .. +14 %
     blind = dataclasses.replace(l1_case.measurements, noise_std=None)
     R, source = noise_variance(blind)

@@ -13,20 +13,20 @@ import scipy.sparse as sp
 from wingopt.errors import InputError, SolverError
 from wingopt.estimation.load_space import build_load_space, edge_mass
 from wingopt.estimation.mhe import MHESettings, MovingHorizonEstimator, mhe_identify
-from wingopt.estimation.mhe_model import ReducedModel
-from wingopt.estimation.mhe_solvers import make_solver
-from wingopt.estimation.mhe_start import sign_score
-from wingopt.estimation.protocol import simulate_case
+from wingopt.estimation.mhe.model import ReducedModel
+from wingopt.estimation.mhe.solvers import make_solver
+from wingopt.estimation.mhe.start import sign_score
+from wingopt.estimation.noise import estimate_noise_std
 from wingopt.estimation.regularization import (
     LambdaPoint,
     choose_lambda,
     discrepancy_lambda,
-    estimate_noise_std,
     knee_lambda,
 )
 from wingopt.fe import VALUE, EdgeCondition, SplineBasis1D, TensorSpace, assemble, assemble_mixed, separable
 from wingopt.membrane import MembraneModel, load_case, simulate_response
 from wingopt.solvers import SolveStatus
+from wingopt.workflows.protocols import simulate_case
 
 SMALL = (13, 7)
 SMALL_TRUTH = (25, 13)
@@ -85,7 +85,7 @@ def test_free_load_space_coupling_and_edge_load(small_model, membrane_problem):
     assert free.lift(one) == pytest.approx(membrane_problem.width * membrane_problem.height, rel=1e-12)
     # L3 is largest on the edge x = W: the fixed space cannot hold it, the free space can.
     L3 = load_case("L3", membrane_problem.width, membrane_problem.height)
-    from wingopt.estimation.protocol import relative_l2
+    from wingopt.workflows.protocols import relative_l2
 
     e_fixed = relative_l2(small_model.space, L3, fixed.field(fixed.project(L3)))
     e_free = relative_l2(small_model.space, L3, free.field(free.project(L3)))
@@ -262,8 +262,8 @@ def test_start_from_rest_without_deflection_prior(small_model, small_problem):
         meas = Measurements(traj.t, y, small_problem.sensor_names)
         s = MHESettings(window=100, stride=50, modes=20)
         res = mhe_identify(small_model, meas, s, initial_deflection=0.0)
-        from wingopt.estimation.protocol import relative_l2
         from wingopt.estimation.studies import load_field
+        from wingopt.workflows.protocols import relative_l2
 
         out[name] = (relative_l2(truth.space, load, load_field(res, small_model)), res.info["sign"])
     err, sign = out["L1"]
@@ -304,7 +304,7 @@ def test_random_walk_tracks_a_load_step(small_model, small_problem):
 def test_consistency_profile_finds_a_leading_misfit():
     """Chi-square segments: a leading run of misfit is the onset; the level is the median of the
     consistent ones (floored at 1); leverage lowers a segment's degrees of freedom."""
-    from wingopt.estimation.mhe_consistency import first_inconsistent, leading_onset, segment_profile
+    from wingopt.estimation.mhe.consistency import first_inconsistent, leading_onset, segment_profile
 
     rng = np.random.default_rng(0)
     r2 = rng.standard_normal((200, 4)) ** 2
@@ -334,7 +334,7 @@ def test_consistency_profile_finds_a_leading_misfit():
 def test_random_walk_process_noise_is_the_inverse_covariance(small_model):
     """Woodbury form of the random walk's increment information: (tau/T_a) v v^T + (tau/T_s) G^-1
     (relative to the reference load) inverted; the amplitude direction is cheap, shape changes are not."""
-    from wingopt.estimation.mhe_load_model import RandomWalk, l2_metric
+    from wingopt.estimation.mhe.load_model import RandomWalk, l2_metric
 
     ls = build_load_space(small_model, "fixed")
     red = ReducedModel.build(small_model, ls, 20)
@@ -452,7 +452,7 @@ def test_random_walk_covariance_is_amplitude_plus_slow_shape(small_estimator):
     inverse, the amplitude direction has relative variance ``tau/T_a + tau/T_s`` and a zero
     reference load is refused with an error naming the load model."""
     from wingopt.errors import InputError
-    from wingopt.estimation.mhe_load_model import RandomWalk, l2_metric
+    from wingopt.estimation.mhe.load_model import RandomWalk, l2_metric
 
     red = small_estimator.reduced
     G = l2_metric(red)

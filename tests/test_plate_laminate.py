@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from wingopt.errors import InputError
-from wingopt.plate.laminate import (
+from wingopt.materials import (
     isotropic_stiffness,
     laminate_rigidity,
     moment_integrals,

@@ -24,12 +24,12 @@ _LAZY = {
     "load_problem": "wingopt.problem",
     "parse_mesh": "wingopt.problem",
     "build_model": "wingopt.models",
-    "morph": "wingopt.control.morph",
-    "write_morph_outputs": "wingopt.control.morph",
-    "identify": "wingopt.estimation.identify",
-    "write_identify_outputs": "wingopt.estimation.identify",
+    "morph": "wingopt.workflows.morph",
+    "write_morph_outputs": "wingopt.workflows.morph",
+    "identify": "wingopt.workflows.identify",
+    "write_identify_outputs": "wingopt.workflows.identify",
     "read_measurements": "wingopt.estimation.csv_data",
-    "run_demo": "wingopt.demo",
+    "run_demo": "wingopt.workflows.demo",
 }
 
 __all__ = ["__version__", *_LAZY]

@@ -24,6 +24,20 @@ class WingModel(Protocol):
 
 
 def build_model(problem, nodes: tuple[int, int] | None = None) -> WingModel:
-    """Assemble the model of ``problem`` on its own mesh or on ``nodes``."""
+    """Assemble the FE model of ``problem`` on its own mesh or on ``nodes``.
+
+    Parameters
+    ----------
+    problem : MembraneProblem or PlateProblem
+        From :func:`wingopt.problem.load_problem`.
+    nodes : (int, int), optional
+        Mesh nodes in x and y (default: the problem's).
+
+    Returns
+    -------
+    MembraneModel or PlateModel
+        Sparse ``M``, ``K``, damping, inputs and sensors; ``model.system`` is its
+        :class:`~wingopt.dynamics.SecondOrderSystem` (modes and static fields cached).
+    """
     module, cls = _MODEL_CLASSES[problem.kind].split(":")
     return getattr(importlib.import_module(module), cls).from_problem(problem, nodes)

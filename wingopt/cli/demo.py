@@ -34,7 +34,7 @@ def register(sub, common) -> None:
 
 
 def run(args) -> int:
-    from wingopt.demo import DemoConfig, run_demo, summary_table
+    from wingopt.workflows.demo import DemoConfig, run_demo, summary_table
 
     summary = run_demo(
         args.out, DemoConfig.quick() if args.quick else DemoConfig(), progress=None if not args.quiet else False

@@ -34,6 +34,8 @@ examples:
 
 def parse_noise(text: str) -> float:
     """``"1"`` or ``"1%"`` -> 0.01. Percent is the unit; bare values in (0, 0.1) are ambiguous."""
+    from wingopt.values import NoiseLevel
+
     s = str(text).strip()
     m = re.fullmatch(r"([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*(%?)", s)
     if not m:
@@ -44,9 +46,7 @@ def parse_noise(text: str) -> float:
             f"noise = {text!r}: ambiguous, the noise is in percent (1 means 1 %); "
             f"for {100 * value:g} % write {100 * value:g}, for {value:g} % write '{value:g}%'"
         )
-    if value > 100:
-        raise InputError(f"noise = {text!r}: expected a percentage between 0 and 100")
-    return value / 100.0
+    return NoiseLevel.from_percent(value).fraction
 
 
 def _mesh(text):
@@ -118,8 +118,14 @@ def register(sub, common) -> None:
         action="store_true",
         help="do not skip an unexplained start (load onset) nor restart on data inconsistent with the estimate",
     )
-    g.add_argument("--lambda", dest="lam", type=float, help="fixed Tikhonov weight (default: from the data)")
-    g.add_argument("--lambda-rule", choices=("robust", "discrepancy", "gcv"), default="robust")
+    p.add_argument(
+        "--lambda", dest="lam", type=float, help="fixed Tikhonov weight, any method (default: from the data)"
+    )
+    p.add_argument(
+        "--lambda-rule",
+        help="data-only rule choosing lambda: mhe knee (default), morozov, gcv; jekf-tuned late-innovation-lr "
+        "(default), prediction-evidence, quasi-optimality (docs/formulations.md)",
+    )
     g.add_argument("--modes", type=int, default=40, help="membrane modes kept (default 40)")
     g.add_argument("--pressure-bounds", nargs=2, type=float, metavar=("MIN", "MAX"), help="Pa (cvxpy/ipopt)")
     p.add_argument("--initial-load", type=float, help="sign prior, Pa (default: the problem's initial_load)")
@@ -179,16 +185,15 @@ def _settings(args):
         load_space=args.load_space,
         backend=args.backend,
         qp_solver=args.qp_solver,
-        regularization=args.lam,
-        lambda_rule=args.lambda_rule,
         pressure_bounds=tuple(args.pressure_bounds) if args.pressure_bounds else None,
     )
 
 
 def run(args) -> int:
-    from wingopt.estimation.identify import identify, write_identify_outputs
     from wingopt.problem import load_problem, parse_mesh
     from wingopt.results.writer import check_writable
+    from wingopt.values import LambdaChoice
+    from wingopt.workflows.identify import identify, write_identify_outputs
 
     check_writable(args.out)
     problem = load_problem(args.problem)
@@ -214,6 +219,7 @@ def run(args) -> int:
         initial_load=args.initial_load,
         noise_std=args.noise_std,
         mhe_settings=settings,
+        lam=None if args.lam is None and args.lambda_rule is None else LambdaChoice(args.lam, args.lambda_rule),
     )
     write_identify_outputs(run_, args.out, plots=not args.no_plots)
     _print(to_jsonable(run_.summary()), args)

@@ -77,8 +77,8 @@ def _options(args) -> dict:
 
 
 def _check(args) -> None:
-    from wingopt.control.morph import METHODS
     from wingopt.plate.shapes import SHAPES
+    from wingopt.workflows.morph import METHODS
 
     if args.shape not in SHAPES:
         raise InputError(f"shape = {args.shape!r}: expected one of {', '.join(SHAPES)}")
@@ -99,10 +99,10 @@ def _check(args) -> None:
 
 
 def run(args) -> int:
-    from wingopt.control.morph import load_factory, morph, resolve_limits, write_morph_outputs
     from wingopt.plate import PlateModel
     from wingopt.problem import load_problem, parse_mesh
     from wingopt.results.writer import check_writable
+    from wingopt.workflows.morph import load_factory, morph, write_morph_outputs
 
     check_writable(args.out)
     _check(args)
@@ -124,8 +124,8 @@ def run(args) -> int:
     result = morph(problem, args.shape, args.method, vmin=args.vmin, vmax=args.vmax, **common, **options)
     compare = None
     if args.method != "lqr" and not args.no_compare:
-        lo, hi = resolve_limits(problem, args.method, args.vmin, args.vmax)
-        compare = morph(problem, args.shape, "lqr", vmin=lo, vmax=hi, **common)
+        # The baseline, saturated at the QP's limits: the same limits, read off the QP's run.
+        compare = morph(problem, args.shape, "lqr", vmin=result.vmin, vmax=result.vmax, **common)
     summary = write_morph_outputs(result, args.out, compare, plots=not args.no_plots)
     _print(summary, args)
     return 0

@@ -11,20 +11,7 @@ The plant is the full finite-element model advanced by its *exact* zero-order ho
 step equal to the control period (the default) is exact at every control instant; a finer
 ``plant_dt`` only adds stored instants between them (for plots of the intersample motion).
 
-Two exact-ZOH plants (see :func:`make_plant`):
-
-* ``"dense"``: the first-order system ``x = [z; z']`` and one augmented matrix exponential
-  (``expm`` of a ``2n + 9`` matrix). Exact; 0.2 s to build on 7x31, ~5 s on 13x61 (915 dofs).
-* ``"modal"``: the lowest undamped modes up to ``band_hz`` plus one static-correction Ritz vector
-  per patch (Dickens' modal truncation augmentation), with the *full* projected damping matrix
-  (the plate's damping is not proportional), then the exact ZOH of that reduced system. The steady
-  state under any voltage is the full model's exactly (the static fields ``K^-1 b`` lie in the
-  basis); the transient error is that of the truncated modes above the band, measured against
-  the dense plant in ``tests/test_control_closed_loop.py`` (7x31, LQG bending: shape-error
-  histories within 1e-3 with the default 10 kHz band, 2e-2 with 3 kHz). Used on meshes where a
-  dense ``2n x 2n`` exponential is too slow (25x121: 6534 states).
-
-``"auto"`` picks ``"dense"`` up to 1000 dofs (7x31, 13x61) and ``"modal"`` above.
+The plant models (dense or modal exact ZOH) are in :mod:`wingopt.control.plant`.
 
 Why a 10 ms control period: 100 Hz is the real-time target of issue 4 (one QP per period on
 13x61), it samples the first two bending and the first torsion modes (10, 38, 51 Hz) well above
@@ -36,26 +23,19 @@ from __future__ import annotations
 
 import logging
 import time
-import weakref
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 import numpy as np
-import scipy.linalg as sla
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
-from wingopt.dynamics import zoh
+from wingopt.control.plant import DEFAULT_PLANT_BAND_HZ, make_plant
 from wingopt.errors import InputError
+from wingopt.values import VoltageLimits
 
 __all__ = [
     "Controller",
     "ClosedLoopResult",
     "simulate_closed_loop",
-    "make_plant",
-    "DensePlant",
-    "ModalPlant",
-    "ritz_basis",
     "DEFAULT_PERIOD",
     "check_limits",
 ]
@@ -64,12 +44,6 @@ log = logging.getLogger(__name__)
 
 DEFAULT_PERIOD = 0.01
 """Control period, s (100 Hz, the real-time target of issue 4)."""
-
-DENSE_PLANT_MAX_DOFS = 1000
-"""``plant="auto"`` uses the dense exact plant up to this many dofs, the modal one above."""
-
-DEFAULT_PLANT_BAND_HZ = 10000.0
-"""Upper end of the modal plant's band (Hz); the static correction covers the rest exactly at DC."""
 
 
 @runtime_checkable
@@ -174,168 +148,13 @@ class ClosedLoopResult:
         return out
 
 
-# -- plants -----------------------------------------------------------------------------------------
-
-
-def ritz_basis(
-    model, n_modes: int, static: bool = True, modes: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """M-orthonormal, K-orthogonal basis of the lowest modes plus the static fields ``K^-1 b``.
-
-    Returns ``(V, omega)``: ``V`` of shape ``(n, r)`` with ``V^T M V = I`` and
-    ``V^T K V = diag(omega^2)``, ascending ``omega`` (rad/s). The first ``n_modes`` columns are the
-    true undamped modes; the appended ones are stiff pseudo-modes carrying what the kept modes miss
-    of each patch's static field, so the static response to any voltage lies in ``span V``.
-    ``modes`` may pass the lowest M-orthonormal mode shapes if already computed (``(n, >= n_modes)``).
-    """
-    n = model.n
-    n_modes = int(min(max(n_modes, 1), n - (model.n_inputs if static else 0) - 1))
-    if modes is not None and modes.shape[1] >= n_modes:
-        Phi = modes[:, :n_modes]
-    else:
-        Phi = model.system.undamped_modes(n_modes)[1]
-    cols = [Phi]
-    if static:
-        Zs = spla.splu(sp.csc_matrix(model.stiffness)).solve(model.actuation)
-        M = model.mass
-        res = Zs - Phi @ (Phi.T @ (M @ Zs))
-        G = res.T @ (M @ res)
-        g, U = np.linalg.eigh(0.5 * (G + G.T))
-        keep = g > 1e-12 * max(g.max(), 1e-300)
-        if keep.any():
-            Rv = res @ (U[:, keep] / np.sqrt(g[keep]))
-            Rv = Rv - Phi @ (Phi.T @ (M @ Rv))  # Gram–Schmidt twice: keep M-orthogonality to round-off
-            cols.append(Rv)
-    T = np.hstack(cols)
-    Mt = T.T @ (model.mass @ T)
-    Kt = T.T @ (model.stiffness @ T)
-    lam, X = sla.eigh(0.5 * (Kt + Kt.T), 0.5 * (Mt + Mt.T))
-    return T @ X, np.sqrt(np.clip(lam, 0.0, None))
-
-
-class DensePlant:
-    """Exact ZOH of the full first-order model ``x = [z; z']`` (dense ``2n x 2n`` transition)."""
-
-    kind = "dense"
-
-    def __init__(self, model, dt: float) -> None:
-        t0 = time.perf_counter()
-        ss = model.system.state_space()
-        self.F, self.G = zoh(ss.A, ss.B, dt)
-        self.n = model.n
-        self.dt = dt
-        self.build_seconds = time.perf_counter() - t0
-        log.info("dense plant: %d states, exact ZOH at %g s in %.2f s", 2 * self.n, dt, self.build_seconds)
-
-    @property
-    def description(self) -> str:
-        return f"dense exact ZOH, {2 * self.n} states"
-
-    def initial_state(self, z0: np.ndarray, zdot0: np.ndarray) -> np.ndarray:
-        return np.concatenate([z0, zdot0])
-
-    def step(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        return self.F @ x + self.G @ u
-
-    def fields(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return x[: self.n], x[self.n :]
-
-
-class ModalPlant:
-    """Exact ZOH of the modal model ``z = V q`` (modes below ``band_hz`` + static correction).
-
-    ``q'' + V^T Kd V q' + diag(omega^2) q = V^T b u`` with the full projected damping matrix.
-    """
-
-    kind = "modal"
-
-    def __init__(self, model, dt: float, band_hz: float = DEFAULT_PLANT_BAND_HZ, max_modes: int = 1500) -> None:
-        t0 = time.perf_counter()
-        n = model.n
-        count = min(max_modes, n - model.n_inputs - 1)
-        if n <= 4000:
-            # One dense symmetric eigensolution (8 s at 3267 dofs) beats Lanczos for hundreds of modes.
-            lam, Phi = sla.eigh(model.stiffness.toarray(), model.mass.toarray(), subset_by_index=(0, count - 1))
-            freqs = np.sqrt(np.clip(lam, 0.0, None)) / (2 * np.pi)
-        else:
-            freqs, Phi = model.modes(count)
-        n_modes = max(int(np.count_nonzero(freqs <= band_hz)), 1)
-        if n_modes == count and count < n - model.n_inputs - 1:
-            log.warning("modal plant: %d modes do not reach %g Hz (highest %.0f Hz)", count, band_hz, freqs[-1])
-        V, omega = ritz_basis(model, n_modes, modes=Phi)
-        r = V.shape[1]
-        Dq = V.T @ (model.damping @ V)
-        A = np.block([[np.zeros((r, r)), np.eye(r)], [-np.diag(omega**2), -0.5 * (Dq + Dq.T)]])
-        B = np.vstack([np.zeros((r, model.n_inputs)), V.T @ model.actuation])
-        self.F, self.G = zoh(A, B, dt)
-        self.V = V
-        self.mass = model.mass
-        self.r = r
-        self.n_modes = n_modes
-        self.band_hz = float(band_hz)
-        self.dt = dt
-        self.build_seconds = time.perf_counter() - t0
-        log.info(
-            "modal plant: %d modes below %g Hz + %d static vectors, exact ZOH at %g s in %.2f s",
-            n_modes,
-            band_hz,
-            r - n_modes,
-            dt,
-            self.build_seconds,
-        )
-
-    @property
-    def description(self) -> str:
-        return f"modal exact ZOH, {self.n_modes} modes <= {self.band_hz:g} Hz + {self.r - self.n_modes} static vectors"
-
-    def initial_state(self, z0: np.ndarray, zdot0: np.ndarray) -> np.ndarray:
-        # M-orthogonal projection onto span V (exact for fields in the span, e.g. from rest).
-        return np.concatenate([self.V.T @ (self.mass @ z0), self.V.T @ (self.mass @ zdot0)])
-
-    def step(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        return self.F @ x + self.G @ u
-
-    def fields(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        return self.V @ x[: self.r], self.V @ x[self.r :]
-
-
-_PLANTS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-def make_plant(model, dt: float, kind: str = "auto", band_hz: float = DEFAULT_PLANT_BAND_HZ):
-    """The exact-ZOH plant of ``model`` at step ``dt`` (cached per model, kind, step and band).
-
-    Parameters
-    ----------
-    kind : {"auto", "dense", "modal"}
-        ``"auto"``: dense up to :data:`DENSE_PLANT_MAX_DOFS` dofs, modal above.
-    band_hz : float
-        Band of the modal plant (ignored by the dense one).
-    """
-    if kind not in ("auto", "dense", "modal"):
-        raise InputError(f"plant = {kind!r}: expected auto, dense or modal")
-    if kind == "auto":
-        kind = "dense" if model.n <= DENSE_PLANT_MAX_DOFS else "modal"
-    key = (kind, round(float(dt), 15), float(band_hz) if kind == "modal" else None)
-    cache = _PLANTS.setdefault(model, {})
-    if key not in cache:
-        cache[key] = DensePlant(model, dt) if kind == "dense" else ModalPlant(model, dt, band_hz)
-    return cache[key]
-
-
 # -- the harness ------------------------------------------------------------------------------------
 
 
 def check_limits(vmin, vmax, m: int) -> tuple[np.ndarray | None, np.ndarray | None]:
-    """Validate voltage limits (scalars or one per patch; ``None`` = unlimited on that side)."""
-    lo = None if vmin is None else np.broadcast_to(np.asarray(vmin, dtype=float), (m,)).copy()
-    hi = None if vmax is None else np.broadcast_to(np.asarray(vmax, dtype=float), (m,)).copy()
-    for name, v in (("vmin", lo), ("vmax", hi)):
-        if v is not None and np.any(np.isnan(v)):
-            raise InputError(f"{name} = {v!r}: expected numbers (V)")
-    if lo is not None and hi is not None and np.any(lo >= hi):
-        raise InputError(f"vmin = {vmin!r}, vmax = {vmax!r}: expected vmin < vmax")
-    return lo, hi
+    """Voltage limits as ``(lower, upper)`` arrays, ``None`` for an unlimited side (:class:`VoltageLimits`)."""
+    limits = VoltageLimits.from_user(vmin, vmax, m)
+    return limits.side("lower"), limits.side("upper")
 
 
 def _steps(period: float, dt: float, what: str) -> int:
@@ -357,6 +176,7 @@ def simulate_closed_loop(
     vmin=None,
     vmax=None,
     *,
+    limits: VoltageLimits | None = None,
     plant: str = "auto",
     plant_band_hz: float = DEFAULT_PLANT_BAND_HZ,
     z0: np.ndarray | None = None,
@@ -382,6 +202,8 @@ def simulate_closed_loop(
         Seed of the noise generator.
     vmin, vmax : float or array (9,), optional
         Saturation applied by the harness to the controller's output (``None``: unlimited).
+    limits : VoltageLimits, optional
+        The same, already validated (instead of ``vmin``/``vmax``).
     plant : {"auto", "dense", "modal"}
         Plant model (see :func:`make_plant`).
 
@@ -404,7 +226,11 @@ def simulate_closed_loop(
     if target.shape != (model.n,):
         raise InputError(f"target: shape {target.shape}, expected ({model.n},)")
     m = model.n_inputs
-    lo, hi = check_limits(vmin, vmax, m)
+    if limits is None:
+        limits = VoltageLimits.from_user(vmin, vmax, m)
+    elif vmin is not None or vmax is not None:
+        raise InputError("simulate_closed_loop: give limits= or vmin/vmax, not both")
+    lo, hi = limits.side("lower"), limits.side("upper")
     n_ctrl = int(np.floor(t_end / period + 1e-9))
     n_steps = n_ctrl * sub
 
@@ -434,10 +260,7 @@ def simulate_closed_loop(
         if not np.all(np.isfinite(u)):
             raise InputError(f"controller {controller.name!r} returned non-finite voltages at t = {k * period:g} s")
         Ureq[k] = u
-        if lo is not None:
-            u = np.maximum(u, lo)
-        if hi is not None:
-            u = np.minimum(u, hi)
+        u = limits.clip(u)
         U[k], Y[k] = u, y
         for s in range(sub):
             x = plant_model.step(x, u)

@@ -38,7 +38,7 @@ from functools import cached_property
 import numpy as np
 
 from wingopt.control.lqr import dlqe
-from wingopt.dynamics import zoh
+from wingopt.dynamics.reduction import ReducedModel, modes_below, reduced_basis
 from wingopt.errors import InputError
 
 __all__ = ["SteadyStateKalman", "KalmanSettings", "EstimatorModel"]
@@ -197,32 +197,12 @@ class EstimatorModel:
         if not (np.isfinite(dt) and dt > 0):
             raise InputError(f"dt = {dt!r}: expected a positive sample period (s)")
         if n_modes is None:
-            band = 0.6 / dt if band_hz is None else float(band_hz)
-            count = 8
-            while True:
-                freqs, Phi = model.modes(min(count, model.n - 1))
-                if freqs[-1] > band or count >= model.n - 1:
-                    break
-                count *= 2
-            n_modes = max(int(np.count_nonzero(freqs <= band)), 1)
-            Phi = Phi[:, :n_modes]
-            omega = 2 * np.pi * freqs[:n_modes]
-        else:
-            if int(n_modes) < 1:
-                raise InputError(f"n_modes = {n_modes!r}: expected at least one mode")
-            omega, Phi = model.system.undamped_modes(int(n_modes))
-        from wingopt.control.tracking import static_fields
-
-        Zs = static_fields(model)
-        b = model.actuation
-        Rs = Zs - Phi @ ((Phi.T @ b) / omega[:, None] ** 2)
-        r = Phi.shape[1]
-        Dq = Phi.T @ (model.damping @ Phi)
-        A = np.block([[np.zeros((r, r)), np.eye(r)], [-np.diag(omega**2), -0.5 * (Dq + Dq.T)]])
-        B = np.vstack([np.zeros((r, model.n_inputs)), Phi.T @ b])
-        F, G = zoh(A, B, dt)
-        C = np.hstack([model.sensing @ Phi, np.zeros((model.n_inputs, r))])
-        return cls(Phi, Rs, omega, A, B, F, G, C, model.sensing @ Rs, float(dt))
+            n_modes = modes_below(model.system, 0.6 / dt if band_hz is None else float(band_hz))
+        elif int(n_modes) < 1:
+            raise InputError(f"n_modes = {n_modes!r}: expected at least one mode")
+        red = ReducedModel.from_basis(model.system, *reduced_basis(model.system, int(n_modes)), output=model.sensing)
+        ct, disc = red.state_space(), red.discretize(dt)
+        return cls(red.basis, red.residual, red.omega, ct.A, ct.B, disc.A, disc.B, disc.C, disc.D, float(dt))
 
     @property
     def r(self) -> int:

@@ -716,7 +716,7 @@ class QPController:
 
     @property
     def extras(self) -> dict:
-        """Method-specific numbers for :class:`~wingopt.control.morph.MorphResult` (= :meth:`summary`)."""
+        """Method-specific numbers for :class:`~wingopt.workflows.morph.MorphResult` (= :meth:`summary`)."""
         return self.summary()
 
     def summary(self) -> dict:
@@ -736,7 +736,7 @@ class QPController:
 
 
 def make_qp_controller(model, target, *, vmin, vmax, period: float, **options) -> QPController:
-    """The morphing QP as a harness ``Controller`` (``wingopt.control.morph.METHODS["qp"]``).
+    """The morphing QP as a harness ``Controller`` (``wingopt.workflows.morph.METHODS["qp"]``).
 
     Parameters
     ----------

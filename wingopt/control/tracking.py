@@ -323,7 +323,7 @@ def _finite_or_none(v):
 
 
 def make_lqr_controller(model, target, *, vmin=None, vmax=None, period=DEFAULT_PERIOD, **options):
-    """Factory of the ``lqr`` method (see :data:`wingopt.control.morph.METHODS`).
+    """Factory of the ``lqr`` method (see :data:`wingopt.workflows.morph.METHODS`).
 
     ``options``: ``r, alpha, beta, n_modes, band_hz`` (:class:`LQRSettings`) and ``sigma_u, sigma_q, sigma_y``
     (:class:`~wingopt.control.kalman.KalmanSettings`). Infinite or ``None`` limits mean unlimited.

@@ -38,7 +38,15 @@ import scipy.sparse.linalg as spla
 from wingopt.dynamics.statespace import SecondOrderSystem, StateSpace, zoh
 from wingopt.errors import InputError
 
-__all__ = ["ReducedModel", "reduce_system", "frequency_response", "CORRECTIONS"]
+__all__ = [
+    "ReducedModel",
+    "reduce_system",
+    "reduced_basis",
+    "static_residual",
+    "modes_below",
+    "frequency_response",
+    "CORRECTIONS",
+]
 
 log = logging.getLogger(__name__)
 
@@ -92,6 +100,35 @@ class ReducedModel:
     error: float = float("nan")
     band_hz: float = float("nan")
     history: tuple[tuple[int, float], ...] = field(default=(), repr=False)
+
+    @classmethod
+    def from_basis(
+        cls,
+        system: SecondOrderSystem,
+        basis: np.ndarray,
+        omega: np.ndarray,
+        residual: np.ndarray,
+        output: np.ndarray | None = None,
+        **info,
+    ) -> ReducedModel:
+        """The reduced model of ``system`` on an M-orthonormal, K-orthogonal ``basis`` (see :func:`reduced_basis`).
+
+        The damping is projected in full (``Phi^T Kd Phi``, symmetrised); ``output`` ``C`` is
+        carried as ``C Phi`` and ``C R``. ``info`` sets the bookkeeping fields (``n_modes``, ...).
+        """
+        Dq = basis.T @ (system.damping @ basis)
+        Bq = np.asarray(sp.csr_matrix(system.input_matrix).T @ basis).T
+        C = None if output is None else np.asarray(output, dtype=float)
+        return cls(
+            basis=basis,
+            omega=omega,
+            damping=0.5 * (Dq + Dq.T),
+            input_matrix=Bq,
+            residual=residual,
+            output_matrix=None if C is None else C @ basis,
+            output_feedthrough=None if C is None else C @ residual,
+            **info,
+        )
 
     @property
     def size(self) -> int:
@@ -176,13 +213,51 @@ def _relative_error(H: np.ndarray, MH: np.ndarray, W: np.ndarray, MW: np.ndarray
     return np.sqrt(np.maximum(full2 - 2 * cross + quad, 0.0) / full2)
 
 
-def _basis(system: SecondOrderSystem, Phi: np.ndarray, omega: np.ndarray, Zs, correction: str):
-    """``(Phi, omega, R)`` for one truncation: true modes and residual, or Ritz vectors."""
+def static_residual(system: SecondOrderSystem, shapes: np.ndarray, omega: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """What the kept modes miss of the static response to ``rhs``: ``K^-1 rhs - Phi diag(omega^-2) Phi^T rhs``.
+
+    The mode-acceleration correction: M-orthogonal to ``shapes`` (M-orthonormal modes of
+    ``system``), so ``Phi q + residual`` is the exact static field when ``q`` is the modal static
+    response. ``rhs`` is ``(n,)`` or ``(n, m)``.
+    """
+    rhs = _dense(rhs)
+    return system.static_solve(rhs) - shapes @ ((shapes.T @ rhs) / (omega[:, None] if rhs.ndim == 2 else omega) ** 2)
+
+
+def reduced_basis(
+    system: SecondOrderSystem, n_modes: int, correction: str = "residual"
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(Phi, omega, R)`` for one truncation of ``system`` to its lowest ``n_modes`` modes.
+
+    Parameters
+    ----------
+    system : SecondOrderSystem
+        The full model; its cached modes and static fields are used.
+    n_modes : int
+        Number of true modes kept.
+    correction : {"residual", "ritz", "none"}
+        ``"residual"``: the true modes and the quasi-static residual fields ``R`` of the inputs
+        (:func:`static_residual` of ``B``); ``"ritz"``: the residual fields appended to the modes
+        and Ritz vectors of ``(K, M)`` on the enlarged space (``R = 0``); ``"none"``: the modes
+        alone (``R = 0``).
+
+    Returns
+    -------
+    Phi : ndarray (n, r)
+        M-orthonormal, K-orthogonal: ``Phi^T K Phi = diag(omega^2)``.
+    omega : ndarray (r,)
+        Circular frequencies, rad/s, ascending.
+    R : ndarray (n, m)
+        Residual fields per unit input (zeros unless ``"residual"``).
+    """
+    if correction not in CORRECTIONS:
+        raise InputError(f"correction = {correction!r}: expected one of {', '.join(CORRECTIONS)}")
+    omega, Phi = system.undamped_modes(n_modes)
     M = system.mass
     n, m = system.n, system.input_matrix.shape[1]
     if correction == "none":
         return Phi, omega, np.zeros((n, m))
-    R = Zs - Phi @ (Phi.T @ (M @ Zs))
+    R = static_residual(system, Phi, omega, system.input_matrix)
     if correction == "residual":
         return Phi, omega, R
     # Ritz: M-orthonormalise the residual fields (dropping dependent directions), then diagonalise K.
@@ -197,6 +272,21 @@ def _basis(system: SecondOrderSystem, Phi: np.ndarray, omega: np.ndarray, Zs, co
     Mt, Kt = T.T @ (M @ T), T.T @ (system.stiffness @ T)
     lam, X = sla.eigh(0.5 * (Kt + Kt.T), 0.5 * (Mt + Mt.T))
     return T @ X, np.sqrt(np.clip(lam, 0.0, None)), np.zeros((n, m))
+
+
+def modes_below(system: SecondOrderSystem, band_hz: float, start: int = 8) -> int:
+    """Number of undamped modes of ``system`` at or below ``band_hz`` (at least one).
+
+    Asks the model's mode cache for more modes (doubling from ``start``) until one lies above
+    the band or all are known.
+    """
+    top = system.n - 1
+    count = min(start, top)
+    while True:
+        omega, _ = system.undamped_modes(count)
+        if omega[-1] > 2 * np.pi * band_hz or count >= top:
+            return max(int(np.count_nonzero(omega <= 2 * np.pi * band_hz)), 1)
+        count = min(2 * count, top)
 
 
 def reduce_system(
@@ -230,6 +320,11 @@ def reduce_system(
         truncation: the steady state is then not exact).
     n_modes : int, optional
         Keep exactly this many modes instead of searching (the error is still measured).
+
+    Returns
+    -------
+    ReducedModel
+        The reduced model with its measured error, the band and the sizes tried.
     """
     if correction not in CORRECTIONS:
         raise InputError(f"correction = {correction!r}: expected one of {', '.join(CORRECTIONS)}")
@@ -240,8 +335,7 @@ def reduce_system(
     top = int(max_modes if n_modes is None else n_modes)
     if not 1 <= top <= n - b.shape[1] - 1:
         raise InputError(f"modes = {top}: expected 1..{n - b.shape[1] - 1}")
-    omega_all, Phi_all = system.undamped_modes(top)
-    Zs = None if correction == "none" else spla.splu(sp.csc_matrix(system.stiffness)).solve(b)
+    omega_all, _ = system.undamped_modes(top)
 
     f_modes = omega_all / (2 * np.pi)
     freqs = np.unique(np.concatenate([np.linspace(0.0, band_hz, n_freqs), f_modes[f_modes <= band_hz]]))
@@ -250,11 +344,9 @@ def reduce_system(
 
     history = []
     for r in [top] if n_modes is not None else range(1, top + 1):
-        Phi, omega, R = _basis(system, Phi_all[:, :r], omega_all[:r], Zs, correction)
-        Dq = Phi.T @ (system.damping @ Phi)
-        red = ReducedModel(Phi, omega, 0.5 * (Dq + Dq.T), Phi.T @ b, R)
+        red = ReducedModel.from_basis(system, *reduced_basis(system, r, correction))
         # The reduced field is W X with W = [Phi, R] and X = [H_r; I].
-        W = np.hstack([Phi, R])
+        W = np.hstack([red.basis, red.residual])
         m = b.shape[1]
         X = np.concatenate([red.response(freqs), np.broadcast_to(np.eye(m), (len(freqs), m, m))], axis=1)
         err = float(_relative_error(H, MH, W, np.asarray(system.mass @ W), X).max())
@@ -268,15 +360,12 @@ def reduce_system(
                 "raise max_modes or loosen tol"
             )
     log.info("reduced %d dofs to %d modes (%s correction), error %.2e on 0..%g Hz", n, r, correction, err, band_hz)
-    C = None if output is None else np.asarray(output, dtype=float)
-    return ReducedModel(
-        basis=Phi,
-        omega=omega,
-        damping=red.damping,
-        input_matrix=red.input_matrix,
-        residual=R,
-        output_matrix=None if C is None else C @ Phi,
-        output_feedthrough=None if C is None else C @ R,
+    return ReducedModel.from_basis(
+        system,
+        red.basis,
+        red.omega,
+        red.residual,
+        output,
         n_modes=r,
         correction=correction,
         error=err,

@@ -17,6 +17,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from wingopt.dynamics.modes import ModeCache
 from wingopt.errors import InputError
 
 __all__ = ["StateSpace", "SecondOrderSystem", "zoh", "discretize", "simulate"]
@@ -152,30 +153,23 @@ class SecondOrderSystem:
         B = np.vstack([np.zeros_like(Minv_B), Minv_B])
         return StateSpace(A, B)
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_cache", ModeCache(self.mass, self.stiffness, self.input_matrix))
+
     def undamped_modes(self, count: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Lowest ``count`` (default all) circular frequencies and M-orthonormal mode shapes."""
-        n = self.n
-        count = n if count is None else int(count)
-        if not 1 <= count <= n:
-            raise InputError(f"count = {count}: expected 1..{n}")
-        # Dense eigh is O(n^3) (about 1 s at n ~ 1000, far more on a loaded machine); shift-invert
-        # Lanczos needs one sparse factorization and is as accurate for the few lowest modes.
-        if n <= 200 or count > n // 4:
-            lam, Phi = sla.eigh(_dense(self.stiffness), _dense(self.mass), subset_by_index=(0, count - 1))
-        else:
-            # A fixed start vector: ARPACK's default is random, which made results differ in the
-            # last digits from run to run.
-            lam, Phi = spla.eigsh(
-                sp.csc_matrix(self.stiffness),
-                k=count,
-                M=sp.csc_matrix(self.mass),
-                sigma=0.0,
-                which="LM",
-                v0=np.ones(n),
-            )
-            order = np.argsort(lam)
-            lam, Phi = lam[order], Phi[:, order]
-        return np.sqrt(np.clip(lam, 0.0, None)), Phi
+        """Lowest ``count`` (default all) circular frequencies (rad/s) and M-orthonormal mode shapes.
+
+        Computed once per system (:class:`~wingopt.dynamics.modes.ModeCache`) and kept.
+        """
+        return self._cache.modes(self.n if count is None else count)
+
+    def static_solve(self, rhs: np.ndarray) -> np.ndarray:
+        """``K^-1 rhs`` (one sparse LU of ``K``, kept)."""
+        return self._cache.static_solve(rhs)
+
+    def static_fields(self) -> np.ndarray:
+        """``K^-1 B``: the static field of a unit of each input, ``(n, m)`` (computed once, read-only)."""
+        return self._cache.static_fields()
 
     def modal_damping(self, Phi: np.ndarray) -> np.ndarray:
         """``Phi^T D Phi`` for M-orthonormal modes ``Phi``."""

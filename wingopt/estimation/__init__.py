@@ -1,17 +1,18 @@
-"""Load identification on the membrane: measurements, simulated protocol, estimators."""
+"""Load identification on the membrane: measurements, noise level, load spaces, estimators.
+
+Estimators share one shape (``setup / step / result``, a one-shot function beside): the
+moving-horizon estimator (:mod:`wingopt.estimation.mhe`) and the seed's joint EKF as a baseline
+(:mod:`wingopt.estimation.jekf`). Simulated protocols and the ``identify`` use case sit above, in
+:mod:`wingopt.workflows`.
+"""
 
 from wingopt.estimation.csv_data import read_measurements
 from wingopt.estimation.data import IdentificationResult, Measurements
 from wingopt.estimation.mhe import MHESettings, MovingHorizonEstimator, mhe_identify
-from wingopt.estimation.protocol import TRUTH_NODES, SimulatedCase, relative_l2, simulate_case
 
 __all__ = [
     "Measurements",
     "IdentificationResult",
-    "SimulatedCase",
-    "simulate_case",
-    "relative_l2",
-    "TRUTH_NODES",
     "MHESettings",
     "MovingHorizonEstimator",
     "mhe_identify",

@@ -1,4 +1,4 @@
-"""Choosing the Tikhonov weight lambda from the data only, and estimating the noise level.
+"""Choosing the MHE's Tikhonov weight lambda from the data only (the noise level: :mod:`wingopt.estimation.noise`).
 
 The estimator solves its first window for a geometric grid of lambdas (warm-started one from
 the next) and records, for each, the data misfit ``chi2(lambda) = sum w r^2`` and the effective
@@ -46,7 +46,6 @@ __all__ = [
     "knee_lambda",
     "discrepancy_lambda",
     "gcv_lambda",
-    "estimate_noise_std",
 ]
 
 log = logging.getLogger(__name__)
@@ -169,32 +168,3 @@ def choose_lambda(
         lam = lam_k / safety
     info["lambda"] = float(lam)
     return float(lam), info
-
-
-def estimate_noise_std(values: np.ndarray, tail: float = 0.6) -> np.ndarray:
-    """Per-sensor noise standard deviation from the data alone.
-
-    Uses the last ``tail`` fraction of the record (after the start-up transient) and the second
-    differences ``d_k = y_{k+1} - 2 y_k + y_{k-1}``: for white noise ``var(d) = 6 sigma^2``, while a
-    slowly varying signal contributes almost nothing at the sample rate. Outliers beyond 5 robust
-    standard deviations (median absolute deviation) are dropped, then the plain standard
-    deviation is used (about 3 % accuracy from 600 samples). Missing samples (NaN) are skipped.
-    """
-    v = np.asarray(values, dtype=float)
-    start = int(v.shape[0] * (1 - tail))
-    out = np.empty(v.shape[1])
-    for i in range(v.shape[1]):
-        col = v[start:, i]
-        d = col[2:] - 2 * col[1:-1] + col[:-2]
-        d = d[np.isfinite(d)]
-        if d.size < 10:
-            raise InputError(
-                f"sensor {i + 1}: fewer than 10 usable samples to estimate the noise level; give noise_std"
-            )
-        med = np.median(d)
-        mad = 1.4826 * np.median(np.abs(d - med))
-        keep = d[np.abs(d - med) <= 5 * mad] if mad > 0 else d
-        out[i] = np.std(keep) / np.sqrt(6.0)
-    if np.any(out <= 0):
-        raise InputError("noise estimate: a sensor looks noise-free (constant or quantised); give noise_std")
-    return out

@@ -8,7 +8,7 @@
   §6.3.3); the error must fall as sensors are added.
 
 The clean truth of each load is simulated once (fine mesh) and noise is added per seed, exactly
-as :func:`~wingopt.estimation.protocol.simulate_case` does.
+as :func:`~wingopt.workflows.protocols.simulate_case` does.
 """
 
 from __future__ import annotations
@@ -24,10 +24,10 @@ import numpy as np
 from wingopt.errors import InputError
 from wingopt.estimation.data import IdentificationResult, Measurements
 from wingopt.estimation.mhe import MHESettings, mhe_identify
-from wingopt.estimation.protocol import TRUTH_NODES, SimulatedCase, simulate_case
 from wingopt.fe import integrate
 from wingopt.membrane import MembraneModel, add_noise
 from wingopt.problem.membrane import MembraneProblem, StretchSensorSpec
+from wingopt.workflows.protocols import TRUTH_NODES, SimulatedCase, simulate_case
 
 __all__ = [
     "CaseRecord",
@@ -197,11 +197,11 @@ def run_method(
         return mhe_identify(model, measurements, mhe_settings, initial_load=initial_load, **kwargs)
     if method in ("jekf", "jekf-seed", "jekf-tuned"):
         try:
-            from wingopt.estimation import jekf_tuning
+            from wingopt.estimation import jekf as jekf_presets
         except ImportError as exc:  # pragma: no cover - the JEKF is built in parallel
             raise InputError(f"method {method}: the JEKF is not available ({exc})") from None
         variant = "tuned" if method == "jekf-tuned" else "seed"
-        return jekf_tuning.identify(
+        return jekf_presets.identify(
             model, measurements, variant=variant, truth=truth, initial_load=initial_load, **kwargs
         )
     raise InputError(f"method = {method!r}: expected mhe, jekf-seed or jekf-tuned")

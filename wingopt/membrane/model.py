@@ -13,7 +13,6 @@ from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from wingopt.dynamics import ModalModel, SecondOrderSystem
 from wingopt.fe import (
@@ -126,7 +125,7 @@ class MembraneModel:
 
     def static_deflection(self, load_coefficients: np.ndarray) -> np.ndarray:
         """Equilibrium ``K_T z = M f``."""
-        return spla.spsolve(sp.csc_matrix(self.stiffness), self.gram @ load_coefficients)
+        return self.system.static_solve(self.gram @ load_coefficients)
 
     def l2_norm(self, coef: np.ndarray) -> float:
         """``||Σ c_i phi_i||_L2 = sqrt(c^T M c)``."""

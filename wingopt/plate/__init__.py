@@ -1,10 +1,10 @@
-"""The plate wing with piezocomposite patch pairs (chapters 4–5): laminate, layout, FE model, targets.
+"""The plate wing with piezocomposite patch pairs (chapters 4–5): layout, FE model, targets.
 
-``PlateModel`` is imported lazily so that :mod:`wingopt.problem.plate` can use the laminate helpers
-without an import cycle.
+The laminate and piezo material laws are in :mod:`wingopt.materials` (below both this package and
+:mod:`wingopt.problem`); they are re-exported here for convenience.
 """
 
-from wingopt.plate.laminate import (
+from wingopt.materials import (
     isotropic_stiffness,
     laminate_rigidity,
     plate_rigidity,
@@ -12,6 +12,7 @@ from wingopt.plate.laminate import (
     rotate,
     symmetric_pair_rigidity,
 )
+from wingopt.plate.model import PlateModel, plate_space
 
 __all__ = [
     "PlateModel",
@@ -23,11 +24,3 @@ __all__ = [
     "plate_rigidity",
     "symmetric_pair_rigidity",
 ]
-
-
-def __getattr__(name: str):
-    if name in ("PlateModel", "plate_space"):
-        from wingopt.plate import model
-
-        return getattr(model, name)
-    raise AttributeError(f"module 'wingopt.plate' has no attribute {name!r}")

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wingopt.fe import Cells, TensorSpace
-from wingopt.plate.laminate import moment_integrals, symmetric_pair_rigidity
+from wingopt.materials import moment_integrals, symmetric_pair_rigidity
 from wingopt.problem.plate import PlateProblem
 
 __all__ = ["CellProperties", "cell_properties", "actuation_moments"]

@@ -29,7 +29,6 @@ from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from wingopt.dynamics import SecondOrderSystem
 from wingopt.errors import InputError
@@ -207,7 +206,7 @@ class PlateModel:
         rhs = self.actuation @ np.asarray(voltages, dtype=float)
         if load is not None:
             rhs = rhs + load
-        return spla.spsolve(sp.csc_matrix(self.stiffness), rhs)
+        return self.system.static_solve(rhs)
 
     def sensor_outputs(self, z: np.ndarray) -> np.ndarray:
         """Patch strain outputs ``C z`` for a field ``(n,)`` or a history ``(nt, n)``."""

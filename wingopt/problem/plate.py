@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wingopt.errors import ProblemFileError
-from wingopt.plate.laminate import plate_rigidity, reduced_stiffness
+from wingopt.materials import plate_rigidity, reduced_stiffness
 from wingopt.problem.fields import Table
 
 __all__ = [

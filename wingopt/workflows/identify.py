@@ -22,9 +22,11 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation.data import IdentificationResult, Measurements
-from wingopt.estimation.protocol import TRUTH_NODES, SimulatedCase
+from wingopt.estimation.lambda_rules import resolve as resolve_rule
 from wingopt.membrane import MembraneModel
 from wingopt.results import ResultDirectory, write_csv, write_json
+from wingopt.values import LambdaChoice, NoiseLevel
+from wingopt.workflows.protocols import TRUTH_NODES, SimulatedCase
 
 __all__ = ["METHODS", "IdentifyRun", "identify", "write_identify_outputs", "LOAD_GRID"]
 
@@ -122,6 +124,7 @@ def identify(
     noise_std: float | None = None,
     mhe_settings=None,
     jekf_modes: int | None = None,
+    lam: LambdaChoice | None = None,
 ) -> IdentifyRun:
     """Estimate the load of a membrane problem from a simulated (``load``) or measured (``data``) record.
 
@@ -150,6 +153,14 @@ def identify(
     jekf_modes : int, optional
         Modes kept by the JEKF (default all: exact; 60 is ~20x faster with the same final errors
         to 4 digits on L1–L3, measured).
+    lam : LambdaChoice, optional
+        A fixed lambda or a rule of :mod:`wingopt.estimation.lambda_rules` for ``method``; default:
+        the method's own (for the MHE, what ``mhe_settings`` says).
+
+    Returns
+    -------
+    IdentifyRun
+        The estimate, the measurements, the truth (simulated records) and the summary.
     """
     from wingopt.estimation.csv_data import read_measurements
     from wingopt.estimation.studies import CleanCases, protocol_sign, run_method
@@ -160,13 +171,13 @@ def identify(
         raise InputError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
     if (load is None) == (data is None):
         raise InputError("identify: give exactly one of load= (simulated protocol) or data= (measured CSV)")
+    mhe_settings, extra = _lambda_options(method, lam, mhe_settings)
     if nodes is not None:
         problem = problem.with_mesh(nodes)
     model = MembraneModel.from_problem(problem)
     case, report, protocol = None, None, {}
     if load is not None:
-        if not (np.isfinite(noise) and 0 <= noise <= 1):
-            raise InputError(f"noise = {noise!r}: expected a fraction of the sensors' peak in [0, 1] (0.01 = 1 %)")
+        noise = NoiseLevel(noise).fraction
         if not (np.isfinite(t_end) and t_end > 0):
             raise InputError(f"t_end = {t_end!r}: expected a positive duration (s)")
         case = CleanCases(problem, truth_nodes, t_end).case(load, noise, seed)
@@ -185,14 +196,48 @@ def identify(
         report = csv_report.as_dict()
         meas = _with_noise_std(meas, noise_std)
     name = {"mhe": "mhe", "jekf": "jekf-seed", "jekf-tuned": "jekf-tuned"}[method]
-    extra = {} if method == "mhe" or jekf_modes is None else {"modes": jekf_modes}
+    if method != "mhe" and jekf_modes is not None:
+        extra["modes"] = jekf_modes
     t0 = time.perf_counter()
     result = run_method(name, model, meas, mhe_settings, initial_load=initial_load, truth=case, **extra)
     return IdentifyRun(problem, model, method, meas, result, time.perf_counter() - t0, case, report, protocol)
 
 
+def _lambda_options(method: str, lam: LambdaChoice | None, mhe_settings):
+    """``(mhe_settings, jekf keyword arguments)`` carrying the lambda choice to ``method``."""
+    if lam is None:
+        return mhe_settings, {}
+    if method == "mhe":
+        from wingopt.estimation.mhe import MHESettings
+
+        base = mhe_settings or MHESettings()
+        if lam.is_fixed:
+            return base.replace(regularization=lam.value), {}
+        return base.replace(regularization=None, lambda_rule=resolve_rule(lam.rule, "mhe").internal), {}
+    if lam.is_fixed:
+        return mhe_settings, {"regularization": lam.value}
+    estimator = "jekf" if method == "jekf-tuned" else "jekf-seed"
+    spec = resolve_rule(lam.rule, estimator)
+    return mhe_settings, ({"rule": spec.internal} if estimator == "jekf" else {})
+
+
 def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = True) -> Path:
-    """Write ``summary.json``, ``load.csv`` (uniform grid, edges included), ``lift.csv`` and figures."""
+    """Write ``summary.json``, ``load.csv`` (uniform grid, edges included), ``lift.csv`` and figures.
+
+    Parameters
+    ----------
+    run : IdentifyRun
+        From :func:`identify`.
+    out_dir : path
+        Output directory; replaced atomically (a failed write leaves the earlier one intact).
+    plots : bool
+        Write the figures (load field, lift history with its band, error histories with a truth).
+
+    Returns
+    -------
+    Path
+        ``out_dir``.
+    """
     from wingopt.results.writer import to_jsonable
 
     problem, result = run.problem, run.result

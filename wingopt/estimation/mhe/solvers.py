@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wingopt.errors import InputError, SolverError
-from wingopt.estimation.mhe_window import WindowProblem
+from wingopt.estimation.mhe.window import WindowProblem
 from wingopt.solvers import SolveStatus, status_from
 
 __all__ = ["WindowSolution", "WindowSolver", "NumpySolver", "CvxpySolver", "IpoptSolver", "make_solver", "BACKENDS"]

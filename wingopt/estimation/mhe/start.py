@@ -26,9 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from wingopt.estimation.mhe_model import ReducedModel
-from wingopt.estimation.mhe_solvers import WindowSolution, WindowSolver
-from wingopt.estimation.mhe_window import WindowProblem
+from wingopt.estimation.mhe.model import ReducedModel
+from wingopt.estimation.mhe.solvers import WindowSolution, WindowSolver
+from wingopt.estimation.mhe.window import WindowProblem
 
 __all__ = ["SignPrior", "sign_score", "smooth_load_shapes", "start_window", "StartReport"]
 

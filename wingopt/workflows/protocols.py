@@ -71,7 +71,28 @@ def simulate_case(
     truth_nodes: tuple[int, int] | None = TRUTH_NODES,
     t_end: float = 1.0,
 ) -> SimulatedCase:
-    """Simulate the protocol: truth on ``truth_nodes`` (``None``: the problem's own mesh)."""
+    """Simulate the identification protocol (spec §2) with its truth on a finer mesh.
+
+    Parameters
+    ----------
+    problem : MembraneProblem
+        The estimator's problem (material, sensors, ``dt``).
+    load : str or PressureLoad
+        ``"L1"``, ``"L2"``, ``"L3"``, ``"consistency"`` or any pressure field.
+    noise : float
+        Noise std as a fraction of each sensor's peak output (0.01 = 1 %).
+    seed : int or None
+        Noise seed.
+    truth_nodes : (int, int) or None
+        Mesh of the truth (``None``: the problem's own mesh, the seed's same-mesh protocol).
+    t_end : float
+        Duration (s) from the 1 cm bubble at rest.
+
+    Returns
+    -------
+    SimulatedCase
+        The truth trajectory, the noisy measurements and the error metrics against the truth.
+    """
     if isinstance(load, str):
         load = load_case(load, problem.width, problem.height)
     truth_model = MembraneModel.from_problem(problem, truth_nodes)

@@ -34,6 +34,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from wingopt.dynamics.reduction import static_residual
 from wingopt.errors import InputError
 from wingopt.estimation.load_space import LoadSpace
 from wingopt.membrane import MembraneModel
@@ -203,17 +204,11 @@ class ReducedModel:
         return self.load_map.T @ self.load_space.basis_integrals
 
     # -- deflection ----------------------------------------------------------------------
-    @cached_property
-    def _stiffness_factor(self):
-        return spla.splu(sp.csc_matrix(self.model.stiffness))
-
     def residual_static(self, f: np.ndarray) -> np.ndarray:
         """Static deflection of the dropped modes under load ``f`` (mode-acceleration correction)."""
         if self.m == self.model.n:
             return np.zeros(self.model.n)
-        p = self.load_space.coupling @ f
-        full = self._stiffness_factor.solve(p)
-        return full - self.shapes @ ((self.input_matrix @ f) / self.omega**2)
+        return static_residual(self.model.system, self.shapes, self.omega, self.load_space.coupling @ f)
 
     def deflection(self, q: np.ndarray, f: np.ndarray | None = None) -> np.ndarray:
         """Deflection coefficients ``Phi q`` (+ static correction for load ``f``); ``q`` may be ``(k, m)``."""

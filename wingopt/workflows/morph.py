@@ -21,8 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from wingopt.control.closed_loop import DEFAULT_PERIOD, ClosedLoopResult, check_limits, simulate_closed_loop
+from wingopt.control.closed_loop import DEFAULT_PERIOD, ClosedLoopResult, simulate_closed_loop
 from wingopt.errors import InputError
+from wingopt.values import VoltageLimits
 
 __all__ = ["METHODS", "MorphResult", "morph", "load_factory", "write_morph_outputs", "resolve_limits"]
 
@@ -56,8 +57,8 @@ def load_factory(method: str):
     return factory
 
 
-def resolve_limits(problem, method: str, vmin=None, vmax=None) -> tuple[float | None, float | None]:
-    """Voltage limits of a run: ``(vmin, vmax)`` with ``None`` for an unlimited side.
+def resolve_limits(problem, method: str, vmin=None, vmax=None, patches: int | None = None) -> VoltageLimits:
+    """Voltage limits of a run, validated once (:class:`~wingopt.values.VoltageLimits`).
 
     ``lqr``: as given (``None``: unlimited, the seed's controller). Other methods: the problem's
     ``[actuators]`` limits where not given.
@@ -68,12 +69,9 @@ def resolve_limits(problem, method: str, vmin=None, vmax=None) -> tuple[float | 
             vmin = act.vmin
         if vmax is None and act is not None:
             vmax = act.vmax
-    for name, v in (("vmin", vmin), ("vmax", vmax)):
-        if v is not None and not np.isfinite(v):
-            raise InputError(f"{name} = {v!r}: expected a finite voltage (V); leave it out for no limit")
-    if vmin is not None and vmax is not None and not vmin < vmax:
-        raise InputError(f"vmin = {vmin!r}, vmax = {vmax!r}: expected vmin < vmax")
-    return (None if vmin is None else float(vmin)), (None if vmax is None else float(vmax))
+    if patches is None:
+        patches = len(getattr(problem, "patches", ()) or ())
+    return VoltageLimits.from_user(vmin, vmax, patches)
 
 
 @dataclass(eq=False)
@@ -186,6 +184,12 @@ def morph(
         A model already built for ``problem`` (and ``nodes``), to share between runs.
     **options
         Passed to the method's factory (e.g. ``r`` for lqr; ``horizon, solver, mode`` for qp).
+
+    Returns
+    -------
+    MorphResult
+        The closed-loop run, its target, limits and timing; :meth:`MorphResult.summary` is the
+        spec §7 summary.
     """
     from wingopt.plate import PlateModel
 
@@ -199,17 +203,14 @@ def morph(
     if not (np.isfinite(t_end) and t_end > 0):
         raise InputError(f"t_end = {t_end!r}: expected a positive duration (s)")
     factory = load_factory(method)
-    lo, hi = resolve_limits(problem, method, vmin, vmax)
     if model is None:
         model = PlateModel.from_problem(problem, nodes)
-    check_limits(lo, hi, model.n_inputs)
+    limits = resolve_limits(problem, method, vmin, vmax, model.n_inputs)
+    lo, hi = limits.scalar("lower"), limits.scalar("upper")
     target = model.target(shape)
-    m = model.n_inputs
-    flo = np.full(m, -np.inf) if lo is None else np.full(m, lo)
-    fhi = np.full(m, np.inf) if hi is None else np.full(m, hi)
-    controller = factory(model, target, vmin=flo, vmax=fhi, period=period, **options)
+    controller = factory(model, target, vmin=limits.lower, vmax=limits.upper, period=period, **options)
     cl = simulate_closed_loop(
-        model, controller, target, t_end=t_end, sensor_noise=sensor_noise, seed=seed, vmin=lo, vmax=hi, plant=plant
+        model, controller, target, t_end=t_end, sensor_noise=sensor_noise, seed=seed, limits=limits, plant=plant
     )
     extras = dict(getattr(controller, "extras", {}) or {})
     wall = time.perf_counter() - t0
@@ -227,8 +228,24 @@ def write_morph_outputs(
 ) -> dict:
     """Write ``summary.json``, ``voltages.csv``, ``history.csv`` and figures into ``out_dir`` (atomically).
 
-    ``compare_with`` (e.g. LQR saturated at the same limits) adds its summary under ``"compare_with"``
-    and comparison figures. Returns the summary written.
+    Parameters
+    ----------
+    result : MorphResult
+        The run to write.
+    out_dir : path
+        Output directory; replaced atomically (a failed write leaves the earlier one intact).
+    compare_with : MorphResult, optional
+        A second run (e.g. LQR saturated at the same limits): its summary goes under
+        ``"compare_with"`` and the figures compare both.
+    plots : bool
+        Write the figures.
+    extra_summary : dict, optional
+        Merged into the summary before it is written.
+
+    Returns
+    -------
+    dict
+        The summary written to ``summary.json``.
     """
     from wingopt.errors import OutputError
     from wingopt.results import ResultDirectory, write_csv, write_json

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
-from wingopt.estimation.mhe_model import ReducedModel, WindowBasis
+from wingopt.estimation.mhe.model import ReducedModel, WindowBasis
 
 __all__ = ["WindowProblem", "LinearBounds"]
 

@@ -1,4 +1,4 @@
-"""Bending rigidity of laminates (eqs. 4.4–4.11) and of piezocomposite patch pairs (eqs. 4.23–4.25).
+"""Material laws: bending rigidity of laminates (eqs. 4.4–4.11) and of piezocomposite patch pairs (eqs. 4.23–4.25).
 
 A ply of an orthotropic material has, in its material axes (1 = along the fibres), the plane-stress
 reduced stiffness (eq. 4.5)::

@@ -1,4 +1,4 @@
-"""Choosing ``lambda`` for the JEKF, and the noise level ``R`` from the data.
+"""Choosing the JEKF's ``lambda`` from the data only (the "tuned JEKF").
 
 Two ways of choosing the regularisation weight ``lambda`` of ``P0_d = (P0d_tilde^-1 + lambda Lam)^-1``:
 
@@ -33,35 +33,24 @@ The noise level: ``R`` comes from the settings, else ``Measurements.noise_std``,
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from math import comb
 from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize
 from scipy.stats import chi2
 
 from wingopt.errors import InputError
 from wingopt.estimation.data import IdentificationResult, Measurements
-from wingopt.estimation.jekf import JEKFSettings, JointEKF
+from wingopt.estimation.jekf.filter import JointEKF
+from wingopt.estimation.jekf.settings import JEKFSettings
+from wingopt.estimation.noise import noise_variance
 from wingopt.membrane.model import MembraneModel
 
-__all__ = [
-    "DEFAULT_GRID",
-    "LAMBDA_RULES",
-    "LambdaSearch",
-    "LambdaSelection",
-    "estimate_noise_std",
-    "noise_variance",
-    "seed_lambda",
-    "select_lambda",
-    "tuned_identify",
-]
+__all__ = ["DEFAULT_GRID", "LAMBDA_RULES", "LambdaSelection", "select_lambda", "tuned_identify"]
 
 log = logging.getLogger(__name__)
 
@@ -71,164 +60,10 @@ DEFAULT_GRID = tuple(10.0**k for k in range(-10, -2))
 ``lambda`` multiplies ``Lam`` in SI units (Pa^-2 m^2 per coefficient^2) against ``R`` in sensor
 units: on the seed's membrane the useful range is ~1e-9 .. 1e-4."""
 
+
 LAMBDA_RULES = ("discrepancy", "evidence", "quasi-optimality")
 
-SEED_SCAN = tuple(10.0**k for k in range(-15, -5, 2))
-"""Coarse start scan of :func:`seed_lambda` (seed settings: the optimum is near 1e-12 .. 1e-11)."""
 
-_NOISE_ORDER = 3  # third differences: var = C(6, 3) sigma^2 = 20 sigma^2 for white noise
-_NOISE_FLOOR = 1e-6  # relative floor of the noise std (noise-free data would give R = 0)
-
-
-# -- noise level -----------------------------------------------------------------------------------------
-def estimate_noise_std(measurements: Measurements) -> np.ndarray:
-    """Per-sensor noise standard deviation estimated from the data alone.
-
-    Robust scale (median absolute deviation, ``1.4826 MAD``) of the third differences of each
-    sensor's series divided by ``sqrt(20)``: differencing removes the smooth response (the
-    membrane's modes are sampled many times per period) and the median ignores the few samples of
-    the start-up transient. On the simulated protocol it overestimates by ~3 % (1 % noise) and
-    ~2 % (5 %). Missing samples are dropped (which slightly mixes neighbours across a gap).
-    """
-    v = np.asarray(measurements.values, dtype=float)
-    out = np.empty(v.shape[1])
-    for i in range(v.shape[1]):
-        col = v[np.isfinite(v[:, i]), i]
-        if col.size < _NOISE_ORDER + 8:
-            raise InputError(
-                f"measurements: sensor {measurements.sensor_names[i]!r} has {col.size} samples; "
-                "too few to estimate its noise (give noise_std)"
-            )
-        d = np.diff(col, _NOISE_ORDER)
-        out[i] = 1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(comb(2 * _NOISE_ORDER, _NOISE_ORDER))
-    return out
-
-
-def noise_variance(measurements: Measurements, model: MembraneModel | None = None) -> tuple[np.ndarray, str]:
-    """Measurement variances ``R_i`` for a record, and where they came from.
-
-    Order: ``measurements.noise_std``, the problem's ``identification.noise_std`` (when ``model`` is
-    given), else :func:`estimate_noise_std`. A floor of ``1e-6 max_t |y_i|`` keeps ``R > 0`` on
-    noise-free data.
-    """
-    p = measurements.values.shape[1]
-    if measurements.noise_std is not None:
-        std, source = np.broadcast_to(np.asarray(measurements.noise_std, float), (p,)), "measurements.noise_std"
-    elif model is not None and model.problem.identification.noise_std is not None:
-        std = np.broadcast_to(np.asarray(model.problem.identification.noise_std, float), (p,))
-        source = "problem identification.noise_std"
-    else:
-        std, source = estimate_noise_std(measurements), "estimated (MAD of third differences)"
-    scale = np.nanmax(np.abs(measurements.values), axis=0)
-    floor = _NOISE_FLOOR * np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
-    if np.any(std < floor):
-        source += " (floored)"
-    return np.maximum(std, floor) ** 2, source
-
-
-# -- the seed's method -------------------------------------------------------------------------------
-@dataclass(frozen=True, eq=False)
-class LambdaSearch:
-    """Outcome of :func:`seed_lambda` (Nelder–Mead on the truth: the seed's method).
-
-    Attributes
-    ----------
-    regularization : float
-        The ``lambda`` found.
-    error : float
-        Final relative L2 load error at that ``lambda`` (against the TRUE load).
-    history : tuple of (float, float)
-        ``(lambda, error)`` of every evaluation, in order.
-    evaluations : int
-    wall_s : float
-    message : str
-        The optimiser's message.
-    """
-
-    regularization: float
-    error: float
-    history: tuple[tuple[float, float], ...]
-    evaluations: int
-    wall_s: float
-    message: str
-    method: str = "nelder-mead on log10(lambda), final load error of a noise-free run (uses the truth)"
-
-
-def seed_lambda(
-    model: MembraneModel,
-    case,
-    settings: JEKFSettings | None = None,
-    start: float | None = None,
-    scan: Sequence[float] = SEED_SCAN,
-    maxfev: int = 24,
-    xatol: float = 0.05,
-    fatol: float = 1e-4,
-) -> LambdaSearch:
-    """The seed's choice of ``lambda`` (section 6.3.2): Nelder–Mead minimising the TRUE final load error.
-
-    **This uses the true load** (``case.load_error``): it is the seed's method, kept as the
-    baseline ("seed-faithful JEKF"); it cannot be used on measured data. The seed ran it on a
-    noise-free simulation (``simulate_case(problem, load, noise=0.0)``) and used the result for
-    all noise levels.
-
-    Parameters
-    ----------
-    model : MembraneModel
-        Estimator model.
-    case : SimulatedCase
-        A simulated record with its truth (normally noise-free).
-    settings : JEKFSettings, optional
-        Filter settings (default :meth:`JEKFSettings.seed`); ``regularization`` is searched.
-    start : float, optional
-        Initial ``lambda`` of Nelder–Mead; the initial simplex spans half a decade above it.
-        ``None`` (default): the best value of a coarse ``scan`` (one run per value) — the error
-        is not unimodal in ``lambda`` (on L2 a plain start at ``1e-8`` ends in a local minimum
-        with twice the error), and the seed does not say where its search started.
-    scan : sequence of float
-        Coarse values tried before Nelder–Mead when ``start`` is ``None``.
-    maxfev, xatol, fatol :
-        Nelder–Mead budget (runs, the scan included) and tolerances (``xatol`` in decades).
-    """
-    settings = JEKFSettings.seed() if settings is None else settings
-    if start is not None:
-        _as_lambda("start", start)
-    if getattr(case, "noise_fraction", 0.0):
-        log.warning("seed_lambda: the seed tuned on noise-free data; this case has %g noise", case.noise_fraction)
-    history: list[tuple[float, float]] = []
-    cache: dict[float, float] = {}
-
-    def objective(x: np.ndarray) -> float:
-        lam = float(10.0 ** np.clip(x[0], -30.0, 30.0))
-        key = round(float(x[0]), 10)
-        if key not in cache:
-            res = JointEKF(model, settings.replace(regularization=lam)).run(case.measurements)
-            cache[key] = case.load_error(model.field(res.final_load))
-            history.append((lam, cache[key]))
-            log.info("seed_lambda: lambda %.4g -> load error %.4g", lam, cache[key])
-        return cache[key]
-
-    t0 = time.perf_counter()
-    if start is None:
-        for lam in scan:
-            objective(np.array([math.log10(_as_lambda("scan", lam))]))
-        start = min(history, key=lambda h: h[1])[0]
-    x0 = math.log10(start)
-    opt = minimize(
-        objective,
-        np.array([x0]),
-        method="Nelder-Mead",
-        options={
-            "initial_simplex": np.array([[x0], [x0 + 0.5]]),
-            "xatol": xatol,
-            "fatol": fatol,
-            "maxfev": max(int(maxfev) - len(history), 2),
-        },
-    )
-    best_lam, best_err = min(history, key=lambda h: h[1])
-    return LambdaSearch(best_lam, best_err, tuple(history), len(history), time.perf_counter() - t0, str(opt.message))
-
-
-# -- data-only rules ----------------------------------------------------------------------------------
 @dataclass(frozen=True, eq=False)
 class LambdaSelection:
     """Outcome of :func:`select_lambda` (data only).
@@ -269,13 +104,6 @@ class LambdaSelection:
             "wall_s": self.wall_s,
             **self.info,
         }
-
-
-def _as_lambda(name: str, value: float) -> float:
-    v = float(value)
-    if not (math.isfinite(v) and v > 0):
-        raise InputError(f"{name} = {value!r}: expected a positive regularization weight")
-    return v
 
 
 def _late_chi2(result: IdentificationResult, window: float) -> tuple[float, int]:
@@ -476,106 +304,4 @@ def tuned_identify(
     res.info["single_run_wall_s"] = res.wall_s
     res.wall_s = sel.wall_s
     res.method = "jekf"
-    return res
-
-
-# -- entry point for the command line and the studies -------------------------------------------------
-VARIANTS = ("seed", "tuned")
-
-DEFAULT_SEED_LAMBDA = 1.0e-12
-"""``lambda`` of the seed-faithful filter when there is no truth to tune it on (measured data): about what
-:func:`seed_lambda` finds on the noise-free L1 protocol (25x13 estimator, 49x25 truth)."""
-
-_SEED_CACHE: dict[Any, LambdaSearch] = {}
-
-
-def noise_free(case):
-    """The noise-free twin of a :class:`~wingopt.estimation.protocol.SimulatedCase` (same truth)."""
-    meas = Measurements(
-        t=case.trajectory.t,
-        values=case.trajectory.outputs,
-        sensor_names=case.measurements.sensor_names,
-        noise_std=np.zeros(case.trajectory.outputs.shape[1]),
-        source=f"noise-free {case.load.name}",
-    )
-    return dataclasses.replace(case, measurements=meas, noise_fraction=0.0, seed=None)
-
-
-def cached_seed_lambda(model: MembraneModel, case, settings: JEKFSettings | None = None, **kwargs: Any) -> LambdaSearch:
-    """:func:`seed_lambda` on the noise-free twin of ``case``, cached per (problem, settings, truth)."""
-    settings = (JEKFSettings.seed() if settings is None else settings).replace(regularization=1.0)
-    key = (model.problem, settings, hash(case.trajectory.outputs.tobytes()), tuple(sorted(kwargs.items())))
-    if key not in _SEED_CACHE:
-        _SEED_CACHE[key] = seed_lambda(model, noise_free(case), settings, **kwargs)
-    return _SEED_CACHE[key]
-
-
-def identify(
-    model: MembraneModel,
-    measurements: Measurements,
-    variant: str = "tuned",
-    truth=None,
-    initial_load: float | None = None,
-    regularization: float | None = None,
-    rule: str = "discrepancy",
-    modes: int | None = None,
-    **kwargs: Any,
-) -> IdentificationResult:
-    """The JEKF as the command line and the comparison studies run it.
-
-    Parameters
-    ----------
-    variant : {"seed", "tuned"}
-        ``"seed"``: the seed-faithful filter (``R = 1e-4``, uniform ``initial_load`` prior, the
-        bubble); ``lambda`` from :func:`seed_lambda` on the noise-free twin of ``truth`` (USES THE
-        TRUTH, as the seed did), or :data:`DEFAULT_SEED_LAMBDA` without a truth.
-        ``"tuned"``: zero initial load, ``R`` from the data, ``lambda`` by the data-only ``rule``.
-    truth : SimulatedCase, optional
-        The simulated case (only the seed variant uses it, and only to tune ``lambda``).
-    initial_load : float, optional
-        Signed prior pressure (Pa): the seed's uniform prior mean, and for both variants the sign
-        prior when the problem states no initial deflection. Default: the problem's.
-    regularization : float, optional
-        Fixed ``lambda`` (skips the tuning).
-    modes : int, optional
-        Keep only the lowest ``modes`` membrane modes (:attr:`JEKFSettings.modes`; faster,
-        approximate); default: all (exact).
-    kwargs :
-        Passed to :func:`select_lambda` (tuned) or :func:`seed_lambda` (seed).
-    """
-    if variant not in VARIANTS:
-        raise InputError(f"variant = {variant!r}: expected one of {', '.join(VARIANTS)}")
-    if initial_load is not None and not (math.isfinite(initial_load) and initial_load != 0):
-        raise InputError(f"initial_load = {initial_load!r}: expected a non-zero pressure (Pa)")
-    if variant == "seed":
-        settings = JEKFSettings.seed(initial_load=initial_load).replace(modes=modes)
-        t0 = time.perf_counter()
-        if regularization is not None:
-            lam, source, search = _as_lambda("regularization", regularization), "given", None
-        elif truth is not None:
-            search = cached_seed_lambda(model, truth, settings, **kwargs)
-            lam, source = search.regularization, "seed method: Nelder-Mead on the noise-free truth (uses the truth)"
-        else:
-            lam, source, search = DEFAULT_SEED_LAMBDA, "default (no truth to tune on)", None
-        tune_s = time.perf_counter() - t0
-        res = JointEKF(model, settings.replace(regularization=lam)).run(measurements)
-        res.info.update(variant="seed", lambda_source=source, tuning_wall_s=tune_s)
-        if search is not None:
-            res.info["seed_search"] = {
-                "lambda": search.regularization,
-                "noise_free_error": search.error,
-                "evaluations": search.evaluations,
-                "history": [list(h) for h in search.history],
-                "method": search.method,
-            }
-        return res
-    settings = JEKFSettings.tuned(sign_prior=initial_load).replace(modes=modes)
-    if regularization is not None:
-        res = JointEKF(model, settings.replace(regularization=_as_lambda("regularization", regularization))).run(
-            measurements
-        )
-        res.info.update(variant="tuned", lambda_source="given")
-        return res
-    res = tuned_identify(model, measurements, rule=rule, settings=settings, **kwargs)
-    res.info.update(variant="tuned", lambda_source=f"data-only rule: {rule}")
     return res

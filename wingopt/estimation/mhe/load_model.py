@@ -1,7 +1,7 @@
 """Temporal model of the load in the moving-horizon estimator: the random walk's process noise.
 
 ``constant``: the load does not change; no process noise, the information about it accumulates
-over the whole record (a change is left to the consistency test, :mod:`wingopt.estimation.mhe_consistency`).
+over the whole record (a change is left to the consistency test, :mod:`wingopt.estimation.mhe.consistency`).
 
 ``random_walk``: between two load blocks ``tau`` seconds apart the load changes by a Gaussian
 increment, mostly in **amplitude** and much more slowly in **shape**::
@@ -30,7 +30,7 @@ Why this form (measured, ``docs/estimation.md``):
   changes with the angle of attack, slowly.
 
 All in modal-force coordinates ``u`` of the estimator (``f = E u``, the smoothest load with those
-modal forces, :class:`~wingopt.estimation.mhe_model.ReducedModel`).
+modal forces, :class:`~wingopt.estimation.mhe.model.ReducedModel`).
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.mhe_model import ReducedModel
+from wingopt.estimation.mhe.model import ReducedModel
 
 __all__ = ["RandomWalk", "l2_metric"]
 

@@ -61,12 +61,27 @@ def _progress(total: int, enabled: bool | None):
 
 
 def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = None, progress: bool | None = None):
-    """Run the demo and write ``out_dir`` (replaced atomically). Returns the summary dict."""
-    from wingopt.control.morph import morph, write_morph_outputs
-    from wingopt.estimation.identify import identify, write_identify_outputs
+    """Run the demo (morphing QP vs LQR, identification MHE vs JEKF, the seed's tables) into ``out_dir``.
+
+    Parameters
+    ----------
+    out_dir : path
+        Output directory, replaced atomically: ``report.html`` plus every run's outputs.
+    config : DemoConfig, optional
+        Meshes, durations, loads (default: the full demo).
+    progress : bool, optional
+        Show a progress bar (default: when writing to a terminal).
+
+    Returns
+    -------
+    dict
+        The demo's summary (also written as ``summary.json``).
+    """
     from wingopt.membrane import MembraneModel
     from wingopt.plate import PlateModel
     from wingopt.problem import load_problem
+    from wingopt.workflows.identify import identify, write_identify_outputs
+    from wingopt.workflows.morph import morph, write_morph_outputs
 
     cfg = config or DemoConfig()
     t_start = time.perf_counter()

@@ -1,0 +1,180 @@
+"""The layering rules of docs/architecture.md, enforced on the import graph of the package.
+
+Every ``import`` and ``from ... import`` of a ``wingopt`` module counts, at module level or inside
+a function (a lazy import hides a cycle, it does not remove it); imports under
+``if TYPE_CHECKING:`` are type hints only and do not count.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+import wingopt
+
+ROOT = Path(wingopt.__file__).parent
+
+ENGINES = ("wingopt.control", "wingopt.estimation")
+"""Engines compute; they do not read problem files, write results, draw, or parse arguments."""
+FORBIDDEN_FOR_ENGINES = ("wingopt.results", "wingopt.plots", "wingopt.problem", "wingopt.cli", "wingopt.workflows")
+MAX_LINES = 400
+"""Modules of control/ and estimation/ own one idea each; none is longer than this."""
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _type_checking_lines(tree: ast.AST) -> set[int]:
+    lines: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            for sub in node.body:
+                lines.update(range(sub.lineno, (sub.end_lineno or sub.lineno) + 1))
+    return lines
+
+
+def _imports(path: Path, modules: set[str]) -> set[str]:
+    """``wingopt`` modules imported by ``path`` (resolved to the module files that exist)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    skip = _type_checking_lines(tree)
+    me = _module_name(path)
+    package = me if path.name == "__init__.py" else me.rsplit(".", 1)[0]
+    out: set[str] = set()
+    for node in ast.walk(tree):
+        if getattr(node, "lineno", None) in skip:
+            continue
+        names: list[str] = []
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                base = ".".join(
+                    package.split(".")[: len(package.split(".")) - node.level + 1] + ([base] if base else [])
+                )
+            names = [base] + [f"{base}.{a.name}" for a in node.names]
+        for name in names:
+            if not name.startswith("wingopt"):
+                continue
+            # the longest existing module that the name starts with
+            while name and name not in modules:
+                name = name.rsplit(".", 1)[0] if "." in name else ""
+            if name and name != me:
+                out.add(name)
+    return out
+
+
+@pytest.fixture(scope="module")
+def graph() -> dict[str, set[str]]:
+    files = sorted(ROOT.rglob("*.py"))
+    modules = {_module_name(p) for p in files}
+    return {_module_name(p): _imports(p, modules) for p in files}
+
+
+def _cycles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one node (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+    counter = [0]
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in edges.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(edges):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def _package(module: str) -> str:
+    parts = module.split(".")
+    return ".".join(parts[:2])
+
+
+def _is_package_init(module: str) -> bool:
+    return (ROOT.parent / Path(*module.split(".")) / "__init__.py").exists()
+
+
+def test_the_graph_is_read(graph):
+    # A reader that found nothing would pass every rule below.
+    assert len(graph) > 60
+    assert "wingopt.dynamics.modes" in graph["wingopt.dynamics.statespace"]
+    assert "wingopt.estimation.mhe.settings" in graph["wingopt.estimation.mhe.estimator"]
+
+
+def test_no_cycles_between_files(graph):
+    # A package's __init__ re-exports its modules; the edges *into* an __init__ from its own
+    # submodules would be the cycle "package imports module imports package" that Python resolves
+    # only by import order. Such imports are forbidden too: they are reported here as cycles.
+    assert _cycles(graph) == []
+
+
+def test_no_cycles_between_packages(graph):
+    edges: dict[str, set[str]] = {}
+    for mod, deps in graph.items():
+        src = _package(mod)
+        for d in deps:
+            dst = _package(d)
+            if dst != src:
+                edges.setdefault(src, set()).add(dst)
+    assert _cycles(edges) == []
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_engines_do_not_import_the_upper_layers(graph, engine):
+    bad = sorted(
+        f"{mod} -> {d}"
+        for mod, deps in graph.items()
+        if mod == engine or mod.startswith(engine + ".")
+        for d in deps
+        if any(d == f or d.startswith(f + ".") for f in FORBIDDEN_FOR_ENGINES)
+    )
+    assert bad == []
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_engine_modules_are_small(engine):
+    folder = ROOT / engine.split(".")[1]
+    long = {
+        str(p.relative_to(ROOT)): n for p in folder.rglob("*.py") if (n := len(p.read_text().splitlines())) > MAX_LINES
+    }
+    assert long == {}
+
+
+def test_the_rules_catch_a_violation(tmp_path):
+    # The cycle finder and the reader on a made-up package: a -> b -> a, and a TYPE_CHECKING import ignored.
+    assert _cycles({"a": {"b"}, "b": {"a"}, "c": {"a"}}) == [["a", "b"]]
+    src = tmp_path / "m.py"
+    src.write_text(
+        "from typing import TYPE_CHECKING\n"
+        "if TYPE_CHECKING:\n    import wingopt.plots\n"
+        "def f():\n    import wingopt.cli\n"
+    )
+    tree = ast.parse(src.read_text())
+    assert _type_checking_lines(tree) == {3}

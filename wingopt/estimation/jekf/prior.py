@@ -1,0 +1,64 @@
+"""The joint EKF's prior: the regularised initial load covariance and the initial guess (eqs. 6.44–6.46).
+
+``P0_d = (P0d_tilde^-1 + lambda Lam)^-1`` on the load block only, the uniform prior load
+(``initial_load``) and the seed's initial bubble, whose sign fixes the sign of the estimate.
+Mixed into :class:`~wingopt.estimation.jekf.filter.JointEKF`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.linalg as sla
+
+from wingopt.errors import SolverError
+from wingopt.estimation.jekf.settings import DEFAULT_PEAK
+from wingopt.membrane.loads import bubble
+
+__all__ = ["JointPrior"]
+
+
+class JointPrior:
+    """Initial covariance and guess of the joint state (mixin of :class:`JointEKF`)."""
+
+    # -- prior -------------------------------------------------------------------------------
+    def prior_load_covariance(self) -> np.ndarray:
+        """``P0_d = (P0d_tilde^-1 + lambda Lam)^-1`` in load coefficients (eq. 6.46), dense ``(n, n)``."""
+        s = self.settings
+        prec = s.regularization * self.model.regularizer.toarray()
+        if math.isfinite(s.load_std):
+            prec[np.diag_indices_from(prec)] += 1.0 / s.load_std**2
+        try:
+            c = sla.cho_factor(prec, lower=True)
+        except np.linalg.LinAlgError as exc:
+            raise SolverError("cholesky", "not positive definite", "P0d_tilde^-1 + lambda Lam must be SPD") from exc
+        return sla.cho_solve(c, np.eye(self.n))
+
+    @property
+    def initial_load_value(self) -> float:
+        """Uniform prior mean of the pressure, Pa."""
+        s = self.settings
+        return self.model.problem.identification.initial_load if s.initial_load is None else float(s.initial_load)
+
+    @property
+    def initial_peak(self) -> float:
+        """Signed peak of the initial bubble, m (see :class:`JEKFSettings`)."""
+        s, ident = self.settings, self.model.problem.identification
+        if s.initial_peak is not None:
+            return float(s.initial_peak)
+        known = float(getattr(ident, "initial_deflection", 0.0) or 0.0)
+        if known != 0.0:
+            return known
+        sign = s.sign_prior
+        if sign is None:
+            sign = self.initial_load_value if self.initial_load_value != 0 else ident.initial_load
+        return math.copysign(DEFAULT_PEAK, sign)
+
+    def initial_guess(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Prior mean ``(z0, v0, f0)``: the signed bubble, zero velocity, the uniform load (projected)."""
+        prob = self.model.problem
+        load = self.initial_load_value
+        z0 = self.model.project(bubble(prob.width, prob.height, self.initial_peak))
+        f0 = self.model.project(lambda x, y: np.full_like(x, load)) if load != 0.0 else np.zeros(self.n)
+        return z0, np.zeros(self.n), f0
