@@ -47,7 +47,7 @@ from wingopt.errors import InputError
 from wingopt.estimation.data import IdentificationResult, Measurements
 from wingopt.estimation.jekf.filter import JointEKF
 from wingopt.estimation.jekf.settings import JEKFSettings
-from wingopt.estimation.noise import noise_variance
+from wingopt.estimation.noise import JEKF_NOISE, noise_variance
 from wingopt.membrane.model import MembraneModel
 
 __all__ = ["DEFAULT_GRID", "LAMBDA_RULES", "LambdaSelection", "select_lambda", "tuned_identify"]
@@ -194,7 +194,7 @@ def select_lambda(
         R = np.broadcast_to(np.asarray(settings.measurement_variance, float), (len(model.sensors),))
         R_source = "settings"
     else:
-        R, R_source = noise_variance(measurements, model)
+        R, R_source = noise_variance(measurements, model.problem.identification.noise_std, JEKF_NOISE)
     t0 = time.perf_counter()
     run = _Runner(model, measurements, settings, R, window, progress)
     p = len(model.sensors)
