@@ -91,9 +91,19 @@ class BergerMembrane:
         The linear model (space, Gram and sensor matrices are shared).
     params : MembraneParameters, optional
         Default: the problem file's prestrain and damping.
+    stretch_gain : float
+        Factor ``kappa`` on the stretch-induced tension, ``T = T0 + kappa C (s + nu s')``:
+        1 is Berger's model; a value calibrated on the FvK model (about 1.45 for L1–L3 shapes,
+        1.75 for the leading-edge load, measured in docs/membrane_nonlinear.md) makes the
+        uniform tension stiffen like the non-uniform FvK tension does on average.
     """
 
-    def __init__(self, model: MembraneModel, params: MembraneParameters | None = None) -> None:
+    def __init__(
+        self, model: MembraneModel, params: MembraneParameters | None = None, stretch_gain: float = 1.0
+    ) -> None:
+        if not (np.isfinite(stretch_gain) and stretch_gain >= 0):
+            raise InputError(f"stretch_gain = {stretch_gain!r}: expected a finite non-negative factor")
+        self.stretch_gain = float(stretch_gain)
         self.linear = model
         self.problem = model.problem
         self.params = MembraneParameters.nominal(model.problem) if params is None else params
@@ -105,14 +115,18 @@ class BergerMembrane:
         self.rho_h = mat.areal_density
 
     @classmethod
-    def from_problem(cls, problem, nodes=None, params: MembraneParameters | None = None) -> BergerMembrane:
-        return cls(MembraneModel.from_problem(problem, nodes), params)
+    def from_problem(
+        cls, problem, nodes=None, params: MembraneParameters | None = None, stretch_gain: float = 1.0
+    ) -> BergerMembrane:
+        return cls(MembraneModel.from_problem(problem, nodes), params, stretch_gain)
 
-    def with_params(self, params: MembraneParameters) -> BergerMembrane:
+    def with_params(self, params: MembraneParameters, stretch_gain: float | None = None) -> BergerMembrane:
         """The same operators with other parameters (no re-assembly)."""
         other = BergerMembrane.__new__(BergerMembrane)
         other.__dict__.update(self.__dict__)
         other.params = params
+        if stretch_gain is not None:
+            other.stretch_gain = float(stretch_gain)
         for key in ("damping", "linear_stiffness"):
             other.__dict__.pop(key, None)
         return other
@@ -166,8 +180,8 @@ class BergerMembrane:
     def tensions(self, z: np.ndarray) -> tuple[float, float]:
         """``Tx(z), Ty(z)`` (N/m)."""
         sx, sy = self.stretch(z)
-        p, C, nu = self.params, self.C, self.nu
-        ex, ey = p.eps0_x + sx, p.eps0_y + sy
+        p, C, nu, g = self.params, self.C, self.nu, self.stretch_gain
+        ex, ey = p.eps0_x + g * sx, p.eps0_y + g * sy
         return C * (ex + nu * ey), C * (ey + nu * ex)
 
     def force(self, z: np.ndarray) -> np.ndarray:
@@ -179,7 +193,7 @@ class BergerMembrane:
         """``dF/dz = S + U B U^T``: sparse ``S = Tx Gx + Ty Gy``, ``U = [Gx z, Gy z]``, 2x2 ``B``."""
         tx, ty = self.tensions(z)
         U = np.column_stack([self.gx @ z, self.gy @ z])
-        B = (self.C / self.area) * np.array([[1.0, self.nu], [self.nu, 1.0]])
+        B = (self.stretch_gain * self.C / self.area) * np.array([[1.0, self.nu], [self.nu, 1.0]])
         return (tx * self.gx + ty * self.gy).tocsr(), U, B
 
     def tangent(self, z: np.ndarray) -> np.ndarray:
@@ -235,7 +249,7 @@ class BergerMembrane:
             k = T[0] * m.lam_x + T[1] * m.lam_y
             q = pq / k
             sx, sy = np.sum(m.lam_x * q * q) / (2 * A), np.sum(m.lam_y * q * q) / (2 * A)
-            ex, ey = par.eps0_x + sx, par.eps0_y + sy
+            ex, ey = par.eps0_x + self.stretch_gain * sx, par.eps0_y + self.stretch_gain * sy
             return np.array([C * (ex + nu * ey), C * (ey + nu * ex)]) - T, q, k
 
         T = np.maximum(np.array(self.prestress), 1e-3 * C)
@@ -244,8 +258,16 @@ class BergerMembrane:
             if np.max(np.abs(r)) <= tol * np.max(T):
                 return m.to_field(q)
             # d s_x / d T_a = -sum lam_x q^2 lam_a / k / A
-            dsx = np.array([-np.sum(m.lam_x * q * q * m.lam_x / k), -np.sum(m.lam_x * q * q * m.lam_y / k)]) / A
-            dsy = np.array([-np.sum(m.lam_y * q * q * m.lam_x / k), -np.sum(m.lam_y * q * q * m.lam_y / k)]) / A
+            dsx = (
+                self.stretch_gain
+                * np.array([-np.sum(m.lam_x * q * q * m.lam_x / k), -np.sum(m.lam_x * q * q * m.lam_y / k)])
+                / A
+            )
+            dsy = (
+                self.stretch_gain
+                * np.array([-np.sum(m.lam_y * q * q * m.lam_x / k), -np.sum(m.lam_y * q * q * m.lam_y / k)])
+                / A
+            )
             J = C * np.array([dsx + nu * dsy, dsy + nu * dsx]) - np.eye(2)
             step = -np.linalg.solve(J, r)
             t = 1.0

@@ -131,7 +131,8 @@ def simulate_berger(
     E, dEk, dEc = _step_matrices(m, k, c, h, sensitivities)
     Phi = E[:, :2, :2]
     G0, G1 = E[:, :2, 2] - E[:, :2, 3], E[:, :2, 3]
-    B = (C / A) * np.array([[1.0, nu], [nu, 1.0]])
+    kappa = model.stretch_gain
+    B = (kappa * C / A) * np.array([[1.0, nu], [nu, 1.0]])
     Binv = np.linalg.inv(B)
     times = np.arange(samples * substeps + 1) * h
     P = _load_samples(model, load, times)
@@ -142,7 +143,7 @@ def simulate_berger(
         if not nonlinear:
             return np.zeros_like(q), np.zeros_like(q), np.zeros((q.size, 2))
         sx, sy = np.sum(lx * q * q) / (2 * A), np.sum(ly * q * q) / (2 * A)
-        dtx, dty = C * (sx + nu * sy), C * (sy + nu * sx)
+        dtx, dty = kappa * C * (sx + nu * sy), kappa * C * (sy + nu * sx)
         return (dtx * lx + dty * ly) * q, dtx * lx + dty * ly, np.column_stack([lx * q, ly * q])
 
     if sensitivities:
@@ -231,8 +232,7 @@ def simulate_berger(
     Z, Zd = modes.to_field(Q.T).T, modes.to_field(Vq.T).T
     sx = np.einsum("tk,k,tk->t", Q, lx, Q) / (2 * A)
     sy = np.einsum("tk,k,tk->t", Q, ly, Q) / (2 * A)
-    if not nonlinear:
-        sx, sy = 0 * sx, 0 * sy
+    sx, sy = (kappa * sx, kappa * sy) if nonlinear else (0 * sx, 0 * sy)
     T = np.column_stack(
         [C * (par.eps0_x + sx + nu * (par.eps0_y + sy)), C * (par.eps0_y + sy + nu * (par.eps0_x + sx))]
     )
