@@ -156,3 +156,16 @@ def test_stretch_gain_calibration(problem, berger, l1, z0):
     up = simulate_berger(b.with_params(MembraneParameters(*(th + [e, 0, 0, 0]))), l1, 0.05, z0=z0).outputs
     dn = simulate_berger(b.with_params(MembraneParameters(*(th - [e, 0, 0, 0]))), l1, 0.05, z0=z0).outputs
     assert np.max(np.abs((up - dn) / (2 * e) - tr.doutputs[:, :, 0])) <= 1e-6 * np.max(np.abs(tr.doutputs[:, :, 0]))
+
+
+def test_initial_state_sensitivities(berger, l1, z0):
+    rng = np.random.default_rng(6)
+    dz0, dv0 = rng.standard_normal((berger.n, 2)) * 1e-3, rng.standard_normal((berger.n, 1)) * 0.05
+    tr = simulate_berger(berger, l1, 0.05, z0=z0, sensitivities=True, state_directions=(dz0, dv0))
+    assert tr.sensitivity_names[4:] == ("z0_0", "z0_1", "v0_0")
+    eps = 1e-4
+    for col, (a, b) in enumerate(((dz0[:, 0], 0), (dz0[:, 1], 0), (0, dv0[:, 0]))):
+        up = simulate_berger(berger, l1, 0.05, z0=z0 + eps * a, v0=np.zeros(berger.n) + eps * b).outputs
+        dn = simulate_berger(berger, l1, 0.05, z0=z0 - eps * a, v0=np.zeros(berger.n) - eps * b).outputs
+        ref = tr.doutputs[:, :, 4 + col]
+        assert np.max(np.abs((up - dn) / (2 * eps) - ref)) <= 1e-6 * np.max(np.abs(ref))

@@ -97,6 +97,7 @@ def simulate_berger(
     substeps: int = 1,
     sensitivities: bool = False,
     load_directions: np.ndarray | None = None,
+    state_directions: tuple[np.ndarray, np.ndarray] | None = None,
     nonlinear: bool = True,
     tol: float = 1e-12,
     max_iter: int = 30,
@@ -114,6 +115,10 @@ def simulate_berger(
     sensitivities : bool
         Also propagate ``dz/dtheta`` for the four :class:`MembraneParameters` and for each column
         of ``load_directions`` (``(n, m)`` load coefficients whose weights are constant).
+    state_directions : (dz0, dv0), optional
+        Also sensitivities to the initial state along the columns of ``dz0`` (``(n, r)``
+        deflection coefficients, then ``dv0``, ``(n, s)`` velocity coefficients): e.g. the
+        identity for the full state of a short estimation window, or a reduced basis.
     nonlinear : bool
         ``False`` drops the stretch term: the linear model with tensions ``Tx0, Ty0`` (for a
         constant load the linear model's exact zero-order hold).
@@ -166,6 +171,17 @@ def simulate_berger(
         dP[:, :4] = 0.0
         Sq = np.zeros((model.n, dP.shape[1]))
         Sv = np.zeros_like(Sq)
+        if state_directions is not None:
+            dz0, dv0 = (np.asarray(d, dtype=float).reshape(model.n, -1) for d in state_directions)
+            r = dz0.shape[1] + dv0.shape[1]
+            names += [f"z0_{j}" for j in range(dz0.shape[1])] + [f"v0_{j}" for j in range(dv0.shape[1])]
+            dP = np.hstack([dP, np.zeros((model.n, r))])
+            dPhi = np.concatenate([dPhi, np.zeros(dPhi.shape[:3] + (r,))], axis=3)
+            dG0 = np.concatenate([dG0, np.zeros(dG0.shape[:2] + (r,))], axis=2)
+            dG1 = np.concatenate([dG1, np.zeros(dG1.shape[:2] + (r,))], axis=2)
+            zero = np.zeros((model.n, dv0.shape[1]))
+            Sq = np.hstack([Sq, modes.to_modal(dz0) if dz0.shape[1] else dz0, zero])
+            Sv = np.hstack([Sv, np.zeros_like(dz0), modes.to_modal(dv0) if dv0.shape[1] else dv0])
         SQ = np.empty((samples + 1,) + Sq.shape)
         SQ[0] = Sq
     Q, Vq = np.empty((samples + 1, model.n)), np.empty((samples + 1, model.n))
