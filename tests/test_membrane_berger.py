@@ -169,3 +169,16 @@ def test_initial_state_sensitivities(berger, l1, z0):
         dn = simulate_berger(berger, l1, 0.05, z0=z0 - eps * a, v0=np.zeros(berger.n) - eps * b).outputs
         ref = tr.doutputs[:, :, 4 + col]
         assert np.max(np.abs((up - dn) / (2 * eps) - ref)) <= 1e-6 * np.max(np.abs(ref))
+
+
+def test_bad_input(berger, l1):
+    from wingopt.errors import InputError
+
+    with pytest.raises(InputError, match="substeps"):
+        simulate_berger(berger, l1, 0.01, substeps=0)
+    with pytest.raises(InputError, match="load"):
+        simulate_berger(berger, l1[:-1], 0.01)
+    with pytest.raises(InputError, match="load"):
+        berger.static(l1[:-1])
+    with pytest.raises(InputError, match="stretch_gain"):
+        BergerMembrane(berger.linear, stretch_gain=-1.0)

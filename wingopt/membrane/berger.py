@@ -242,7 +242,7 @@ class BergerMembrane:
         equilibrium is two scalar equations ``T = T(z(T))``. Works without prestrain too.
         """
         m = self.modes
-        pq = m.to_modal_force(p)
+        pq = m.to_modal_force(self.check_load(p))
         C, nu, A, par = self.C, self.nu, self.area, self.params
 
         def resid(T):

@@ -125,6 +125,8 @@ def simulate_berger(
     """
     if not (np.isfinite(t_end) and t_end > 0 and np.isfinite(dt) and dt > 0):
         raise InputError(f"t_end = {t_end!r}, dt = {dt!r}: expected positive durations (s)")
+    if not (isinstance(substeps, (int, np.integer)) and substeps >= 1):
+        raise InputError(f"substeps = {substeps!r}: expected an integer >= 1")
     samples = int(round(t_end / dt))
     h = dt / substeps
     modes, par, mat = model.modes, model.params, model.problem.material

@@ -29,7 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from wingopt.errors import SolverError
+from wingopt.errors import InputError, SolverError
 from wingopt.fe import gauss_legendre
 from wingopt.membrane.model import MembraneModel
 from wingopt.membrane.nonlinear import MembraneParameters, membrane_stiffness, prestress_tensions
@@ -296,6 +296,9 @@ class FvKMembrane:
         ``U - p.w`` (the equilibrium is its minimum), which makes the solve robust for large loads.
         """
         n = self.n
+        p = np.asarray(p, dtype=float)
+        if p.shape != (n,):
+            raise InputError(f"load: shape {p.shape}, expected ({n},) force vector (e.g. gram @ coefficients)")
         z = self._berger_start(p) if z0 is None else np.asarray(z0, float)
         u, v = self.inplane(z)
         scale = max(np.linalg.norm(p), 1e-300)
