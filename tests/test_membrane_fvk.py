@@ -191,3 +191,45 @@ def test_fvk_truth_record_time_convergence(problem):
     b = simulate_record(problem, "L1", t_end=0.3, substeps=4)
     peak = np.max(np.abs(b.outputs))
     assert np.max(np.abs(a.outputs - b.outputs)) <= 0.01 * peak
+
+
+def test_cubic_modal_model_is_exact_on_its_modes_and_close_to_fvk(problem):
+    """The projected cubic force equals FvK's; r = 20 tracks the FvK record to 0.1 % at the end."""
+    from wingopt.membrane import CubicModalMembrane
+
+    small = CubicModalMembrane(FvKMembrane(problem, (13, 7), MembraneParameters(0.06, 0.04)), modes=10)
+    a = np.random.default_rng(7).standard_normal(10) * 2e-3
+    z = small.shapes @ a
+    exact = small.shapes.T @ (small.fvk.force(z) - small.fvk.linear_stiffness @ z)
+    assert np.max(np.abs(small.cubic_force(a) - exact)) <= 1e-12 * np.max(np.abs(exact))
+    fvk = FvKMembrane(problem)
+    rom = CubicModalMembrane(fvk, modes=20)
+    f = _l1(problem, fvk)
+    z0 = fvk.linear.project(bubble(problem.width, problem.height))
+    ref = fvk.linear.sensors.outputs(simulate_fvk(fvk, f, 0.3, z0=z0, substeps=2).z)
+    out = rom.simulate(f, 0.3, z0=z0, substeps=2).outputs
+    peak = np.max(np.abs(ref), axis=0)
+    assert np.sqrt(np.mean(((out - ref) / peak) ** 2)) <= 2e-3  # measured 7e-4 over 1 s
+    assert np.max(np.abs(out[-1] / ref[-1] - 1)) <= 3e-3
+
+
+def test_cubic_modal_sensitivities(problem):
+    from wingopt.membrane import CubicModalMembrane
+
+    rom = CubicModalMembrane(FvKMembrane(problem, (13, 7)), modes=10)
+    f = _l1(problem, rom.fvk)
+    z0 = rom.fvk.linear.project(bubble(problem.width, problem.height))
+    dz0 = np.random.default_rng(8).standard_normal((rom.fvk.n, 1)) * 1e-3
+    tr = rom.simulate(f, 0.05, z0=z0, sensitivities=True, state_directions=(dz0, np.zeros((rom.fvk.n, 0))))
+    th = rom.params.as_array()
+    for i in range(4):
+        e = np.zeros(4)
+        e[i] = 1e-6 * max(th[i], 1.0)
+        up = rom.with_params(MembraneParameters(*(th + e))).simulate(f, 0.05, z0=z0).outputs
+        dn = rom.with_params(MembraneParameters(*(th - e))).simulate(f, 0.05, z0=z0).outputs
+        ref = tr.doutputs[:, :, i]
+        assert np.max(np.abs((up - dn) / (2 * e[i]) - ref)) <= 1e-6 * np.max(np.abs(ref))
+    up = rom.simulate(f, 0.05, z0=z0 + 1e-4 * dz0[:, 0]).outputs
+    dn = rom.simulate(f, 0.05, z0=z0 - 1e-4 * dz0[:, 0]).outputs
+    ref = tr.doutputs[:, :, 4]
+    assert np.max(np.abs((up - dn) / 2e-4 - ref)) <= 1e-6 * np.max(np.abs(ref))

@@ -1,13 +1,15 @@
 """Membrane wing: FE model, stretch sensors, load cases and simulation (chapter 6).
 
 Geometrically nonlinear membranes (spec §8): :class:`FvKMembrane` (Föppl–von Kármán, the truth
-generator), :class:`BergerMembrane` (uniform tension, fast enough for estimation) and
+generator), :class:`CubicModalMembrane` (FvK's exact cubic stiffness on the lowest modes, fast),
+:class:`BergerMembrane` (uniform tension, fastest) and
 :func:`simulate_record` (simulated sensor records from either).
 """
 
 from wingopt.membrane.berger import BergerMembrane
 from wingopt.membrane.berger_sim import BergerTrajectory, simulate_berger
 from wingopt.membrane.fvk import FvKMembrane
+from wingopt.membrane.fvk_modal import CubicModalMembrane
 from wingopt.membrane.fvk_sim import simulate_fvk
 from wingopt.membrane.loads import LOAD_CASES, PressureLoad, bubble, load_case
 from wingopt.membrane.model import MembraneModel, membrane_space
@@ -32,6 +34,7 @@ __all__ = [
     "AlphaSettings",
     "FvKMembrane",
     "simulate_fvk",
+    "CubicModalMembrane",
     "BergerMembrane",
     "BergerTrajectory",
     "simulate_berger",

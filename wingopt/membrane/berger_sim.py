@@ -52,6 +52,81 @@ class BergerTrajectory:
     sensitivity_names: tuple[str, ...] = ()
 
 
+@dataclass(eq=False)
+class _Sensitivity:
+    """Forward sensitivities through the exponential-trapezoidal step (shared by the Berger and
+    cubic modal models): step-matrix derivatives, constant forcing derivatives, initial values."""
+
+    dPhi: np.ndarray  # (n, 2, 2, k)
+    dG0: np.ndarray  # (n, 2, k)
+    dG1: np.ndarray
+    dP: np.ndarray  # (n, k): d(modal load)/d theta
+    Sq0: np.ndarray
+    Sv0: np.ndarray
+    names: tuple[str, ...]
+
+    @classmethod
+    def setup(cls, model, k, dEk, dEc, load_directions=None, state_directions=None) -> _Sensitivity:
+        par, mat, modes = model.params, model.problem.material, model.modes
+        lx, ly, C, nu = modes.lam_x, modes.lam_y, model.C, model.nu
+        dk = np.column_stack([C * (lx + nu * ly), C * (nu * lx + ly), np.zeros_like(k), np.zeros_like(k)])
+        kv = par.kelvin_voigt_scale * mat.kelvin_voigt
+        zero = np.zeros_like(k)
+        dc = kv * dk + np.column_stack([zero, zero, np.full_like(k, mat.viscous), mat.kelvin_voigt * k])
+        dE = dEk[:, :, :, None] * dk[:, None, None, :] + dEc[:, :, :, None] * dc[:, None, None, :]  # (n, 4, 4, 4)
+        n = model.n
+        blocks, names = [np.zeros((n, 4))], list(par.NAMES)
+        s_q, s_v = [np.zeros((n, 4))], [np.zeros((n, 4))]
+        if load_directions is not None:
+            L = np.asarray(load_directions, dtype=float).reshape(n, -1)
+            blocks.append(modes.to_modal_force(model.gram @ L))
+            names += [f"load_{j}" for j in range(L.shape[1])]
+            s_q.append(np.zeros_like(L))
+            s_v.append(np.zeros_like(L))
+        if state_directions is not None:
+            dz0, dv0 = (np.asarray(d, dtype=float).reshape(n, -1) for d in state_directions)
+            names += [f"z0_{j}" for j in range(dz0.shape[1])] + [f"v0_{j}" for j in range(dv0.shape[1])]
+            blocks.append(np.zeros((n, dz0.shape[1] + dv0.shape[1])))
+            s_q += [modes.to_modal(dz0) if dz0.shape[1] else dz0, np.zeros_like(dv0)]
+            s_v += [np.zeros_like(dz0), modes.to_modal(dv0) if dv0.shape[1] else dv0]
+        dP = np.hstack(blocks)
+        extra = dP.shape[1] - 4
+        dE = np.concatenate([dE, np.zeros(dE.shape[:3] + (extra,))], axis=3)
+        return cls(
+            dE[:, :2, :2], dE[:, :2, 2] - dE[:, :2, 3], dE[:, :2, 3], dP, np.hstack(s_q), np.hstack(s_v), tuple(names)
+        )
+
+    def step(self, q, v, f0, f1, Sq, Sv, Phi, G0, G1, jn0, jn1, solve1):
+        """One step of ``S = d(q, v)/d theta``; ``jn*`` apply the nonlinear force Jacobian at the
+        old / new state, ``solve1`` solves ``(I + G1_q J_N(q1)) X = rhs``."""
+        dF0 = self.dP - jn0(Sq)
+        terms = lambda row, dF1: (  # noqa: E731
+            self.dPhi[:, row, 0] * q[:, None]
+            + self.dPhi[:, row, 1] * v[:, None]
+            + Phi[:, row, 0, None] * Sq
+            + Phi[:, row, 1, None] * Sv
+            + self.dG0[:, row] * f0[:, None]
+            + G0[:, row, None] * dF0
+            + self.dG1[:, row] * f1[:, None]
+            + G1[:, row, None] * dF1
+        )
+        Sq1 = solve1(terms(0, self.dP))
+        Sv1 = terms(1, self.dP - jn1(Sq1))
+        return Sq1, Sv1
+
+
+def _sensitivity_outputs(model, Z: np.ndarray, SQ: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``dZ (N+1, n, k)`` and sensor sensitivities ``2 z^T C_i dz`` ``(N+1, p, k)`` from modal ``SQ``."""
+    nt, n, nk = SQ.shape
+    dZ = model.modes.to_field(SQ.transpose(1, 0, 2).reshape(n, -1)).reshape(n, nt, nk).transpose(1, 0, 2)
+    flat = dZ.transpose(1, 0, 2).reshape(n, -1)
+    sensors = model.linear.sensors
+    dout = np.stack(
+        [2.0 * np.einsum("tn,ntk->tk", Z, (Cm @ flat).reshape(n, nt, nk)) for Cm in sensors.matrices], axis=1
+    )
+    return dZ, dout
+
+
 def _step_matrices(m: float, k: np.ndarray, c: np.ndarray, h: float, derivatives: bool):
     """Per mode ``E = expm([[A h, b h, 0], [0, 0, 1], [0, 0, 0]])`` and ``dE/dk, dE/dc``."""
     n = k.size
@@ -154,36 +229,8 @@ def simulate_berger(
         return (dtx * lx + dty * ly) * q, dtx * lx + dty * ly, np.column_stack([lx * q, ly * q])
 
     if sensitivities:
-        dk = np.column_stack([C * (lx + nu * ly), C * (nu * lx + ly), np.zeros_like(k), np.zeros_like(k)])
-        kv = par.kelvin_voigt_scale * mat.kelvin_voigt
-        dc = kv * dk + np.column_stack(
-            [np.zeros_like(k), np.zeros_like(k), np.full_like(k, mat.viscous), mat.kelvin_voigt * k]
-        )
-        dE = dEk[:, :, :, None] * dk[:, None, None, :] + dEc[:, :, :, None] * dc[:, None, None, :]  # (n, 4, 4, 4)
-        dPhi, dG0, dG1 = dE[:, :2, :2], dE[:, :2, 2] - dE[:, :2, 3], dE[:, :2, 3]
-        names = list(par.NAMES)
-        dP = np.zeros((model.n, 4))
-        if load_directions is not None:
-            L = np.asarray(load_directions, dtype=float).reshape(model.n, -1)
-            dP = np.hstack([dP, modes.to_modal_force(model.gram @ L)])
-            names += [f"load_{j}" for j in range(L.shape[1])]
-            dPhi = np.concatenate([dPhi, np.zeros(dPhi.shape[:3] + (L.shape[1],))], axis=3)
-            dG0 = np.concatenate([dG0, np.zeros(dG0.shape[:2] + (L.shape[1],))], axis=2)
-            dG1 = np.concatenate([dG1, np.zeros(dG1.shape[:2] + (L.shape[1],))], axis=2)
-        dP[:, :4] = 0.0
-        Sq = np.zeros((model.n, dP.shape[1]))
-        Sv = np.zeros_like(Sq)
-        if state_directions is not None:
-            dz0, dv0 = (np.asarray(d, dtype=float).reshape(model.n, -1) for d in state_directions)
-            r = dz0.shape[1] + dv0.shape[1]
-            names += [f"z0_{j}" for j in range(dz0.shape[1])] + [f"v0_{j}" for j in range(dv0.shape[1])]
-            dP = np.hstack([dP, np.zeros((model.n, r))])
-            dPhi = np.concatenate([dPhi, np.zeros(dPhi.shape[:3] + (r,))], axis=3)
-            dG0 = np.concatenate([dG0, np.zeros(dG0.shape[:2] + (r,))], axis=2)
-            dG1 = np.concatenate([dG1, np.zeros(dG1.shape[:2] + (r,))], axis=2)
-            zero = np.zeros((model.n, dv0.shape[1]))
-            Sq = np.hstack([Sq, modes.to_modal(dz0) if dz0.shape[1] else dz0, zero])
-            Sv = np.hstack([Sv, np.zeros_like(dz0), modes.to_modal(dv0) if dv0.shape[1] else dv0])
+        sens = _Sensitivity.setup(model, k, dEk, dEc, load_directions, state_directions)
+        Sq, Sv = sens.Sq0, sens.Sv0
         SQ = np.empty((samples + 1,) + Sq.shape)
         SQ[0] = Sq
     Q, Vq = np.empty((samples + 1, model.n)), np.empty((samples + 1, model.n))
@@ -214,33 +261,20 @@ def simulate_berger(
             f1 = P[step + 1] - N1
             v1 = Phi[:, 1, 0] * q + Phi[:, 1, 1] * v + G0[:, 1] * f0 + G1[:, 1] * f1
             if sensitivities:
-                dF0 = dP - (diag0[:, None] * Sq + U0 @ (B @ (U0.T @ Sq)))
-                rhs = (
-                    dPhi[:, 0, 0] * q[:, None]
-                    + dPhi[:, 0, 1] * v[:, None]
-                    + Phi[:, 0, 0, None] * Sq
-                    + Phi[:, 0, 1, None] * Sv
-                    + dG0[:, 0] * f0[:, None]
-                    + G0[:, 0, None] * dF0
-                    + dG1[:, 0] * f1[:, None]
-                    + G1[:, 0, None] * dP
-                )
-                delta = 1.0 + G1[:, 0] * diag1
-                Pm = (G1[:, 0] / delta)[:, None] * U1
-                y = rhs / delta[:, None]
-                Sq1 = y - Pm @ np.linalg.solve(Binv + U1.T @ Pm, U1.T @ y)
-                dF1 = dP - (diag1[:, None] * Sq1 + U1 @ (B @ (U1.T @ Sq1)))
-                Sv = (
-                    dPhi[:, 1, 0] * q[:, None]
-                    + dPhi[:, 1, 1] * v[:, None]
-                    + Phi[:, 1, 0, None] * Sq
-                    + Phi[:, 1, 1, None] * Sv
-                    + dG0[:, 1] * f0[:, None]
-                    + G0[:, 1, None] * dF0
-                    + dG1[:, 1] * f1[:, None]
-                    + G1[:, 1, None] * dF1
-                )
-                Sq = Sq1
+
+                def jn0(S, d=diag0, U=U0):
+                    return d[:, None] * S + U @ (B @ (U.T @ S))
+
+                def jn1(S, d=diag1, U=U1):
+                    return d[:, None] * S + U @ (B @ (U.T @ S))
+
+                def solve1(rhs, d=diag1, U=U1):
+                    delta = 1.0 + G1[:, 0] * d
+                    Pm = (G1[:, 0] / delta)[:, None] * U
+                    y = rhs / delta[:, None]
+                    return y - Pm @ np.linalg.solve(Binv + U.T @ Pm, U.T @ y)
+
+                Sq, Sv = sens.step(q, v, f0, f1, Sq, Sv, Phi, G0, G1, jn0, jn1, solve1)
             q, v, N0, diag0, U0 = q1, v1, N1, diag1, U1
             step += 1
         Q[s + 1], Vq[s + 1] = q, v
@@ -258,11 +292,5 @@ def simulate_berger(
     out = sensors.outputs(Z)
     if not sensitivities:
         return BergerTrajectory(times[::substeps], Z, Zd, out, T)
-    nk = SQ.shape[2]
-    dZ = modes.to_field(SQ.transpose(1, 0, 2).reshape(model.n, -1)).reshape(model.n, samples + 1, nk).transpose(1, 0, 2)
-    flat = dZ.transpose(1, 0, 2).reshape(model.n, -1)
-    dout = np.stack(
-        [2.0 * np.einsum("tn,ntk->tk", Z, (Cm @ flat).reshape(model.n, samples + 1, nk)) for Cm in sensors.matrices],
-        axis=1,
-    )
-    return BergerTrajectory(times[::substeps], Z, Zd, out, T, dZ, dout, tuple(names))
+    dZ, dout = _sensitivity_outputs(model, Z, SQ)
+    return BergerTrajectory(times[::substeps], Z, Zd, out, T, dZ, dout, sens.names)
