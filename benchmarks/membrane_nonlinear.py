@@ -10,8 +10,8 @@ Sections (all printed; ``--sections`` picks some):
   the linear model on 25x13: sensor-output error relative to each sensor's peak (max over time
   and RMS), final-deflection L2 error, final ``∫ w`` error, the tension range.
 * ``time``    — time-step error of the FvK truth integrator (substeps 1, 2, 4 against 8; 0.3 s).
-* ``speed``   — seconds per simulated second: Berger (with and without sensitivities) on 25x13,
-  FvK on 25x13 and 49x25.
+* ``speed``   — seconds per simulated second: Berger and the cubic modal model (with and without
+  sensitivities), FvK, on 25x13 and 49x25.
 * ``mhe``     — the existing linear MHE (``wingopt.estimation.identify(problem, data=CSV)``, the
   ``wingopt identify --data`` path) on FvK truth 49x25, estimator 25x13, 1 % noise, seed 0, for L1
   and LE (and the same loads on linear truth for comparison). Slow (FvK 49x25 records, ~1-2 min
@@ -32,6 +32,7 @@ import numpy as np
 from wingopt.fe import load_vector
 from wingopt.membrane import (
     BergerMembrane,
+    CubicModalMembrane,
     FvKMembrane,
     bubble,
     simulate_berger,
@@ -91,8 +92,9 @@ def section_dynamic(problem) -> None:
     fvk = FvKMembrane(problem)
     lin = fvk.linear
     z0 = lin.project(bubble(problem.width, problem.height))
+    roms = {r: CubicModalMembrane(fvk, r) for r in (10, 20)}
     print(
-        f"{'load':5} {'model':9} {'s max err':>9} {'s rms err':>9} {'s final':>8} {'w final L2':>10} {'∫w final':>9} "
+        f"{'load':5} {'model':12} {'s max err':>9} {'s rms err':>9} {'s final':>8} {'w final L2':>10} {'∫w final':>9} "
         f"{'Tx range N/m':>14} {'Ty range N/m':>14}   (errors relative to each sensor's peak / to FvK)"
     )
     for name in LOADS:
@@ -104,6 +106,10 @@ def section_dynamic(problem) -> None:
         for label, kappa in (("berger", 1.0), ("berger k", KAPPA)):
             tb = simulate_berger(BergerMembrane(lin, stretch_gain=kappa), f, 1.0, z0=z0, substeps=2)
             runs.append((label, tb.z, tb.outputs, tb.tensions))
+        for r, rom in roms.items():
+            for sub in (1, 2):
+                tm = rom.simulate(f, 1.0, z0=z0, substeps=sub)
+                runs.append((f"modal{r} s{sub}", tm.z, tm.outputs, tm.tensions))
         tl = simulate_response(lin, f, 1.0, z0=z0)
         runs.append(("linear", tl.z, tl.outputs, None))
         for label, Z, S, T in runs:
@@ -117,7 +123,7 @@ def section_dynamic(problem) -> None:
                 else f"{T[:, 0].min():6.2f}-{T[:, 0].max():6.2f} {T[:, 1].min():6.2f}-{T[:, 1].max():6.2f}"
             )
             print(
-                f"{name:5} {label:9} {np.max(np.abs(err)):9.4f} {np.sqrt(np.mean(err**2)):9.4f} {fin:8.4f} "
+                f"{name:5} {label:12} {np.max(np.abs(err)):9.4f} {np.sqrt(np.mean(err**2)):9.4f} {fin:8.4f} "
                 f"{wl2:10.4f} {vol:+9.4f}   {tr}"
             )
 
@@ -146,15 +152,26 @@ def section_speed(problem) -> None:
         f = lin.project(truth_load("L1", problem.width, problem.height))
         z0 = lin.project(bubble(problem.width, problem.height))
         berger = BergerMembrane(lin)
+        t0 = time.process_time()
+        roms = {r: CubicModalMembrane(fvk, r) for r in (10, 20)}
+        print(
+            f"{nodes[0]}x{nodes[1]} building the cubic modal models (r = 10 and 20): {time.process_time() - t0:.1f} s"
+        )
         for label, model, kw in (
             ("berger", berger, {}),
             ("berger+sens", berger, {"sensitivities": True}),
             ("berger 2 substeps", berger, {"substeps": 2}),
+            ("modal r10", roms[10], {}),
+            ("modal r20", roms[20], {}),
+            ("modal r20+sens", roms[20], {"sensitivities": True}),
             ("fvk 2 substeps", fvk, {"substeps": 2}),
         ):
             t0 = time.process_time()
             dur = 0.2 if model is fvk else 1.0
-            (simulate_fvk if model is fvk else simulate_berger)(model, f, dur, z0=z0, **kw)
+            if isinstance(model, CubicModalMembrane):
+                model.simulate(f, dur, z0=z0, **kw)
+            else:
+                (simulate_fvk if model is fvk else simulate_berger)(model, f, dur, z0=z0, **kw)
             print(f"{nodes[0]}x{nodes[1]} {label:18} {(time.process_time() - t0) / dur:7.2f} s per s")
 
 
