@@ -15,8 +15,9 @@ and constant; it is factorised once, so the in-plane equilibrium for a given ``w
 
 Dynamics: in-plane inertia is neglected (in-plane waves are ~100x faster), so ``u, v`` follow
 ``w`` quasi-statically and the out-of-plane equation ``rho h M w'' + D w' + F(w) = p`` with the
-reduced force ``F(w) = R_w(w, u(w), v(w))`` is integrated by :func:`~wingopt.membrane.nonlinear.integrate`.
-Its Newton matrix is the exact Schur complement, solved as one sparse coupled system.
+reduced force ``F(w) = R_w(w, u(w), v(w))`` is integrated by :func:`~wingopt.membrane.fvk_sim.simulate_fvk`
+(exponential integrator) or :func:`~wingopt.membrane.nonlinear.integrate` (generalised-alpha; its
+Newton matrix is the exact Schur complement, solved as one sparse coupled system).
 """
 
 from __future__ import annotations

@@ -3,8 +3,10 @@
 * :class:`MembraneParameters` — the identifiable parameters: prestrains ``eps0_x, eps0_y`` and
   scale factors of the two damping terms.
 * :class:`AlphaSettings` and :func:`integrate` — an implicit generalised-alpha integrator
-  (Chung & Hulbert 1993) with Newton iterations for ``M a + D v + F(z) = p(t)``, used by the
-  Föppl–von Kármán model and by the full-order Berger model alike.
+  (Chung & Hulbert 1993) with Newton iterations for ``M a + D v + F(z) = p(t)``, for any model
+  with ``force`` and ``tangent_solver`` (FvK, Berger, :class:`LinearStructure`). The records use
+  the more accurate exponential integrators (:mod:`~wingopt.membrane.fvk_sim`,
+  :mod:`~wingopt.membrane.berger_sim`); this one is the independent cross-check.
 
 Damping (both nonlinear models): ``D = s_v gamma M + s_kv eta K_T0`` with
 ``K_T0 = Tx0 Gx + Ty0 Gy`` the linear tension matrix of the *prestress* (``Tx0, Ty0`` from
