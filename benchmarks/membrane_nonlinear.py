@@ -37,11 +37,10 @@ from wingopt.membrane import (
     bubble,
     simulate_berger,
     simulate_fvk,
-    simulate_record,
     simulate_response,
-    truth_load,
 )
 from wingopt.problem import load_problem
+from wingopt.workflows.records import simulate_record, truth_load
 
 LOADS = ("L1", "L2", "L3", "LE")
 
@@ -181,8 +180,8 @@ def _write_csv(path: str, rec) -> None:
 
 
 def section_mhe(problem, tmp: str) -> None:
-    from wingopt.estimation.identify import identify
-    from wingopt.estimation.protocol import relative_l2
+    from wingopt.workflows.identify import identify
+    from wingopt.workflows.protocols import relative_l2
 
     print("\n== linear MHE (identify --data) on nonlinear records: truth 49x25, estimator 25x13, 1 % noise, seed 0 ==")
     print(

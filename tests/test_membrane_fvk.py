@@ -9,17 +9,16 @@ from wingopt.errors import InputError
 from wingopt.fe import DX, DY, assemble, load_vector, separable
 from wingopt.membrane import (
     FvKMembrane,
-    Gust,
     MembraneModel,
     MembraneParameters,
     bubble,
     load_case,
     simulate_fvk,
-    simulate_record,
     simulate_response,
 )
 from wingopt.membrane.nonlinear import AlphaSettings, LinearStructure, integrate
 from wingopt.problem import load_problem
+from wingopt.workflows.records import Gust, simulate_record
 
 
 @pytest.fixture(scope="module")

@@ -2,8 +2,8 @@
 
 Geometrically nonlinear membranes (spec §8): :class:`FvKMembrane` (Föppl–von Kármán, the truth
 generator), :class:`CubicModalMembrane` (FvK's exact cubic stiffness on the lowest modes, fast),
-:class:`BergerMembrane` (uniform tension, fastest) and
-:func:`simulate_record` (simulated sensor records from either).
+:class:`BergerMembrane` (uniform tension, fastest). Simulated sensor records from either (the
+truth generator of the studies) are made by :func:`wingopt.workflows.records.simulate_record`.
 """
 
 from wingopt.membrane.berger import BergerMembrane
@@ -14,7 +14,6 @@ from wingopt.membrane.fvk_sim import simulate_fvk
 from wingopt.membrane.loads import LOAD_CASES, PressureLoad, bubble, load_case
 from wingopt.membrane.model import MembraneModel, membrane_space
 from wingopt.membrane.nonlinear import AlphaSettings, MembraneParameters
-from wingopt.membrane.records import Gust, NonlinearRecord, leading_edge_load, simulate_record, truth_load
 from wingopt.membrane.sensors import StretchSensors, add_noise, noise_std_for
 from wingopt.membrane.simulation import Trajectory, simulate_response
 
@@ -38,9 +37,4 @@ __all__ = [
     "BergerMembrane",
     "BergerTrajectory",
     "simulate_berger",
-    "Gust",
-    "NonlinearRecord",
-    "simulate_record",
-    "truth_load",
-    "leading_edge_load",
 ]

@@ -1,7 +1,7 @@
 """Simulated sensor records from a geometrically nonlinear membrane: the truth generator.
 
 :func:`simulate_record` mirrors the linear identification protocol (spec §2, seed §6.4;
-:mod:`wingopt.estimation.protocol`): the membrane starts from the 1 cm bubble
+:mod:`wingopt.workflows.protocols`): the membrane starts from the 1 cm bubble
 ``g1 = 0.01 * 16 xi (1 - xi) eta (1 - eta)`` at rest, a load is applied for ``t_end`` at
 ``dt = 1 ms``, the four sensor outputs ``s_i = z^T C_i z`` are taken on the truth mesh and
 Gaussian noise of standard deviation ``p * max_t |s_i|`` is added per sensor. On top of it:
@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wingopt.errors import InputError
+from wingopt.estimation.data import Measurements
 from wingopt.fe import integrate
 from wingopt.membrane.berger import BergerMembrane
 from wingopt.membrane.berger_sim import simulate_berger
@@ -144,8 +145,6 @@ class NonlinearRecord:
 
     def to_measurements(self):
         """The noisy record as :class:`wingopt.estimation.data.Measurements` (noise std attached)."""
-        from wingopt.estimation.data import Measurements  # lazy: estimation builds on membrane
-
         src = "{} {} {:g}% seed {} truth {}x{}".format(
             self.truth, self.load.name, 100 * self.noise_fraction, self.seed, *self.model.problem.nodes
         )
