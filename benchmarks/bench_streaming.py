@@ -149,7 +149,8 @@ def main() -> None:
                 "cpu_provisional", "cpu_steady", "wall_steady"):  # fmt: skip
         s = out[key]
         if s:
-            print(f"{key:22s} n={s['n']:8d}  p50 {s['p50']:.3f}  p99 {s['p99']:.3f}  max {s['max']:.3f}  (of the period)")
+            line = f"{key:22s} n={s['n']:8d}  p50 {s['p50']:.3f}  p99 {s['p99']:.3f}  max {s['max']:.3f}"
+            print(line + "  (of the period)")
     for key in ("startup_cpu_s", "startup_wall_s", "batch_cpu_s", "lift_record_stream", "lift_record_batch",
                 "lift_record_rel_diff", "true_lift", "lift_final", "lift_std_final", "chi2_per_datum_final",
                 "rss_mb_after_record", "rss_growth_mb", "normal_equations_drift", "steady_wall_s",

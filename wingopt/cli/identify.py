@@ -74,7 +74,9 @@ def register(sub, common) -> None:
     src.add_argument(
         "--data", metavar="FILE.csv", help="measured series: t column + one column per sensor ('-': stream from stdin)"
     )
-    src.add_argument("--follow", metavar="FILE.csv", help="stream a CSV that grows: one estimate per sample as rows arrive")
+    src.add_argument(
+        "--follow", metavar="FILE.csv", help="stream a CSV that grows: one estimate per sample as rows arrive"
+    )
     p.add_argument("--noise", default="1", help="simulated noise in PERCENT of each sensor's peak (default 1)")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     p.add_argument("--truth-mesh", default="49x25", help="mesh of the simulated truth (default 49x25)")

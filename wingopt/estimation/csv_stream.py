@@ -123,7 +123,9 @@ class CsvRowParser:
         else:
             step = t - self._t_last
             if not step > 0:
-                raise DataFileError(f"{name}:{ln}: t = {t!r} after {self._t_last!r}: expected strictly increasing times")
+                raise DataFileError(
+                    f"{name}:{ln}: t = {t!r} after {self._t_last!r}: expected strictly increasing times"
+                )
             if self._dt is None:
                 self._dt = step
             ratio = step / self._dt

@@ -325,7 +325,7 @@ class StreamingEstimator:
     def _run_startup(self) -> None:
         """The batch start-up on the buffered samples, then the tracking window from its answer."""
         t0, c0 = time.perf_counter(), time.process_time()
-        batch, s = self._batch, self.settings
+        batch = self._batch
         K = len(self._buf_t)
         tt = self._buf_t[0] + self.dt * np.arange(K)
         Y = np.array(self._buf_y)
