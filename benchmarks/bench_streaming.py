@@ -64,6 +64,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--relinearize", type=int, default=4)
     ap.add_argument("--json", help="write the results here")
+    ap.add_argument("--progress", action="store_true", help="print RSS and latency every 60 s of stream")
     args = ap.parse_args()
 
     problem = load_problem("membrane")
@@ -108,6 +109,10 @@ def main() -> None:
             r = rss_mb()
             rss_max = max(rss_max, r)
             rss_trace.append((round((K0 + start + n) * dt, 1), round(r, 2)))
+            if args.progress:  # the last minute of stream: RSS and CPU per sample (of the period)
+                last = cpu[max(K0, K0 + start + n - 60000) : K0 + start + n]
+                p50, p99 = np.percentile(last, [50, 99]) / dt
+                print(f"t = {(K0 + start + n) * dt:8.0f} s  RSS {r:8.2f} MB  cpu p50 {p50:.3f} p99 {p99:.3f}", flush=True)
     steady_wall = time.perf_counter() - t_steady
     info = est.info()
     trk = phase[:K0] == 3

@@ -194,11 +194,11 @@ def test_deactivate_is_a_marginalisation():
     rng = np.random.default_rng(0)
     A = rng.standard_normal((8, 5))
     H0, g0 = A.T @ A + np.eye(5), rng.standard_normal(5)
-    core = RtiNormalEquations(Rows(), 3, H0, g0)
-    full = np.linalg.solve(core.H, core.g)
+    core = RtiNormalEquations(Rows(), 3, H0, g0, np.ones(5))
+    full = np.linalg.solve(core.hessian(), core.g)
     core.deactivate(np.array([0, 2]))
     assert core.active.tolist() == [1, 3, 4]
-    assert np.allclose(np.linalg.solve(core.H, core.g), full[[1, 3, 4]], rtol=1e-12)
+    assert np.allclose(np.linalg.solve(core.hessian(), core.g), full[[1, 3, 4]], rtol=1e-12)
 
 
 def test_linear_rows_match_the_batch_window_basis(small):

@@ -297,16 +297,18 @@ class StreamingEstimator:
         self.phase = "provisional"
 
     def _begin(self, rows, window, lam, sx, x_prior, level) -> None:
-        m = rows.m
-        H0 = np.zeros((3 * m, 3 * m))
-        H0[: 2 * m, : 2 * m] = np.diag(1.0 / sx**2)
-        H0[2 * m :, 2 * m :] = lam * rows.reduced.roughness
-        g0 = np.concatenate([x_prior / sx**2, np.zeros(m)])
-        self._rows, self.lam, self._level = rows, float(lam), float(level)
-        self._core = RtiNormalEquations(rows, window, H0, g0)
-        self._decay = rows.decay_schedule()
-        Du = self._D[2 * m :]
+        """The real-time iteration's normal equations with the prior, in scaled unknowns."""
+        m, D = rows.m, self._D
+        Du = D[2 * m :]
         self._Ru = Du[:, None] * rows.reduced.roughness * Du[None, :]
+        Dx = D[: 2 * m]
+        H0 = np.zeros((3 * m, 3 * m))
+        H0[: 2 * m, : 2 * m] = np.diag((Dx / sx) ** 2)
+        H0[2 * m :, 2 * m :] = lam * self._Ru
+        g0 = np.concatenate([Dx * x_prior / sx**2, np.zeros(m)])
+        self._rows, self.lam, self._level = rows, float(lam), float(level)
+        self._core = RtiNormalEquations(rows, window, H0, g0, D)
+        self._decay = rows.decay_schedule()
         d = self.settings.mhe.band_decades
         self._band_x = np.linspace(-d, d, 9) if d > 0 else np.zeros(1)
         self._band_var = np.full(self._band_x.size, np.nan)
@@ -375,7 +377,7 @@ class StreamingEstimator:
         core = self._core
         a = core.active
         D = self._D[a]
-        Hs = D[:, None] * core.H * D[None, :]
+        Hs = core.H  # scaled unknowns, lower triangle
         L, info = lapack.dpotrf(Hs, lower=1, clean=1)
         if info != 0:  # not positive definite to working precision: a relative ridge
             Hs = Hs + 1e-12 * np.max(np.diag(Hs)) * np.eye(Hs.shape[0])
@@ -383,7 +385,7 @@ class StreamingEstimator:
             if info != 0:
                 raise np.linalg.LinAlgError("streaming estimator: normal equations not positive definite")
         xi = self.theta[a] / D
-        sol, _ = lapack.dpotrs(L, D * core.g, lower=1)
+        sol, _ = lapack.dpotrs(L, core.g, lower=1)
         step = sol - xi
         limit = self.settings.trust if trust is None else trust
         norm = float(np.sqrt(step @ step))

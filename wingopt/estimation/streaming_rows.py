@@ -29,6 +29,7 @@ is not implemented here (the linear model never needs it).
 from __future__ import annotations
 
 import numpy as np
+from scipy.linalg import blas
 
 from wingopt.estimation.mhe_model import ReducedModel, flush_subnormal
 
@@ -127,17 +128,24 @@ class RtiNormalEquations:
     contribution (two rank-``p`` updates), so the Jacobian of the window is updated incrementally
     and a full re-linearisation of the window is spread over ``window / per_sample`` samples.
 
+    Everything is in the scaled unknowns ``xi = theta / scale`` (all O(1)), and only the lower
+    triangle of ``H`` is kept up to date (symmetric rank-``k`` updates, ``dsyrk``: half the work;
+    the Cholesky factorisation reads the lower triangle only); :meth:`hessian` returns it whole.
+
     Parameters
     ----------
     model : row model (e.g. :class:`LinearRows`)
     window : int
         Rows kept (re-linearised); older rows are frozen into the arrival part.
     H0, g0 : ndarray
-        Prior (quadratic part of the cost ``theta^T H0 theta - 2 g0^T theta``).
+        Prior (quadratic part of the cost ``xi^T H0 xi - 2 g0^T xi``), scaled unknowns.
+    scale : ndarray ``(dim,)``
+        ``theta = scale * xi``.
     """
 
-    def __init__(self, model, window: int, H0: np.ndarray, g0: np.ndarray) -> None:
+    def __init__(self, model, window: int, H0: np.ndarray, g0: np.ndarray, scale: np.ndarray) -> None:
         self.model = model
+        self.scale = np.asarray(scale, dtype=float)
         self.window = int(window)
         p, dim = model.p, model.dim
         cap = self.window + 1
@@ -153,10 +161,10 @@ class RtiNormalEquations:
         self._head = 0  # slot of the oldest row
         self._size = 0
         self._rr = 0  # round-robin position (relative to the oldest row)
-        self.H = np.array(H0, dtype=float)
+        self.H = np.array(H0, dtype=float, order="F")
         self.g = np.array(g0, dtype=float)
         self._H0 = self.H.copy()  # prior + marginalised part, for the drift check only
-        self._Hf = np.zeros_like(self.H)  # frozen rows, for the drift check only
+        self._Hf = np.zeros(self.H.shape)  # frozen rows, for the drift check only
         self.chi2 = 0.0  # window misfit at the rows' linearisations
         self.n_data = 0
         self.absorbed = 0
@@ -171,19 +179,26 @@ class RtiNormalEquations:
         """Sample offset (from the origin) of the oldest window row."""
         return self.pushed - self._size
 
+    def hessian(self) -> np.ndarray:
+        """``H`` with both triangles (the updates keep the lower one)."""
+        L = np.tril(self.H)
+        return L + np.tril(L, -1).T
+
     def _relinearize(self, theta: np.ndarray, slots: np.ndarray) -> None:
         a = self.active
         Y, J = self.model.evaluate(theta, self._rows[slots])
+        D = self.scale[a]
         if a.size < J.shape[2]:
             J = J[:, :, a]
         sw = self._sw[slots]
-        Jw = J * sw[:, :, None]
+        Jw = J * (sw[:, :, None] * D)
         r = sw * (self._y[slots] - Y)
-        z = r + Jw @ theta[a]
+        z = r + Jw @ (theta[a] / D)
         nd = a.size
         Jo = self._J[slots, :, :nd].reshape(-1, nd)
         Jn = Jw.reshape(-1, nd)
-        self.H += Jn.T @ Jn - Jo.T @ Jo
+        self.H = blas.dsyrk(1.0, Jn, beta=1.0, c=self.H, trans=1, lower=1, overwrite_c=1)
+        self.H = blas.dsyrk(-1.0, Jo, beta=1.0, c=self.H, trans=1, lower=1, overwrite_c=1)
         self.g += Jn.T @ z.ravel() - Jo.T @ self._z[slots].ravel()
         r2 = (r * r).sum(axis=1)
         self.chi2 += float(r2.sum() - self._r2[slots].sum())
@@ -250,11 +265,11 @@ class RtiNormalEquations:
             return
         pos = np.searchsorted(self.active, drop)
         keep = np.setdiff1d(np.arange(self.active.size), pos)
-        H, g = self.H, self.g
+        H, g = self.hessian(), self.g
         Hdd = H[np.ix_(pos, pos)]
         X = np.linalg.solve(Hdd, np.column_stack([H[np.ix_(pos, keep)], g[pos]]))
         Hk = H[np.ix_(keep, keep)] - H[np.ix_(keep, pos)] @ X[:, :-1]
-        self.H = 0.5 * (Hk + Hk.T)
+        self.H = np.asfortranarray(0.5 * (Hk + Hk.T))
         self.g = g[keep] - H[np.ix_(keep, pos)] @ X[:, -1]
         nd = self.active.size
         self._J[:, :, : keep.size] = self._J[:, :, :nd][:, :, keep]
@@ -264,7 +279,7 @@ class RtiNormalEquations:
         slots = (self._head + np.arange(self._size)) % self._cap
         J = self._J[slots, :, : keep.size].reshape(-1, keep.size)
         self._H0 = self.H - J.T @ J
-        self._Hf = np.zeros_like(self.H)
+        self._Hf = np.zeros(self.H.shape)
 
     def relinearize_all(self, theta: np.ndarray) -> None:
         """Re-linearise every window row at ``theta`` (start-up only: not bounded per sample)."""
@@ -287,4 +302,4 @@ class RtiNormalEquations:
         nd = self.active.size
         J = self._J[slots, :, :nd].reshape(-1, nd)
         ref = self._H0 + self._Hf + J.T @ J
-        return float(np.max(np.abs(self.H - ref)) / np.max(np.abs(ref)))
+        return float(np.max(np.abs(self.hessian() - ref)) / np.max(np.abs(ref)))
