@@ -112,7 +112,8 @@ def main() -> None:
             if args.progress:  # the last minute of stream: RSS and CPU per sample (of the period)
                 last = cpu[max(K0, K0 + start + n - 60000) : K0 + start + n]
                 p50, p99 = np.percentile(last, [50, 99]) / dt
-                print(f"t = {(K0 + start + n) * dt:8.0f} s  RSS {r:8.2f} MB  cpu p50 {p50:.3f} p99 {p99:.3f}", flush=True)
+                now = (K0 + start + n) * dt
+                print(f"t = {now:8.0f} s  RSS {r:8.2f} MB  cpu p50 {p50:.3f} p99 {p99:.3f}", flush=True)
     steady_wall = time.perf_counter() - t_steady
     info = est.info()
     trk = phase[:K0] == 3
