@@ -84,6 +84,10 @@ class StreamSettings:
     trust : float
         Largest Gauss–Newton step in the scaled unknowns (2-norm; the provisional phase starts
         far from the optimum).
+    provisional_state_modes : int
+        The provisional phase estimates the initial state of this many lowest modes only; the
+        others are held at the prior (the problem's bubble, or rest). A cheaper, cruder estimate
+        (16 + m instead of 3m unknowns) until the batch start-up replaces it.
     """
 
     mhe: MHESettings = field(default_factory=MHESettings)
@@ -91,6 +95,7 @@ class StreamSettings:
     relinearize: int = 4
     min_samples: int = 20
     trust: float = 1.0
+    provisional_state_modes: int = 8
 
     def __post_init__(self) -> None:
         if self.mhe.load_model != "constant":
@@ -101,6 +106,10 @@ class StreamSettings:
             raise InputError(f"streaming relinearize = {self.relinearize!r}: expected a non-negative integer")
         if int(self.min_samples) != self.min_samples or self.min_samples < 20:
             raise InputError(f"streaming min_samples = {self.min_samples!r}: expected an integer >= 20")
+        if int(self.provisional_state_modes) != self.provisional_state_modes or self.provisional_state_modes < 0:
+            raise InputError(
+                f"streaming provisional_state_modes = {self.provisional_state_modes!r}: expected an integer >= 0"
+            )
         if not self.trust > 0:
             raise InputError(f"streaming trust = {self.trust!r}: expected a positive number")
 
@@ -290,6 +299,8 @@ class StreamingEstimator:
         lam = s.mhe.regularization or lam_nat * float(np.sqrt(grid[0] * grid[-1]))
         sx = s.mhe.state_prior * self._D[: 2 * m]
         self._begin(rows, window, lam, sx, x_prior, level=1.0)
+        k = min(int(s.provisional_state_modes), m)
+        self._core.deactivate(np.r_[k:m, m + k : 2 * m])  # held at the prior (before any data)
         self.theta = theta
         for k in range(Y.shape[0]):
             self._push_row(yw[k], sw[k], 0)
