@@ -3,7 +3,7 @@
 The streaming estimator (:mod:`wingopt.estimation.streaming`) sees its model only through a
 *row model*: an object that, sample by sample, hands out the data it needs to evaluate that
 sample's sensor outputs later (``row_data()``), and evaluates the outputs and their Jacobian for
-any set of rows at given parameters ``theta`` (``evaluate(theta, rows)``). Everything else — the
+any set of rows at given parameters ``theta`` (``evaluate(theta, rows, columns)``). Everything else — the
 rolling window, the arrival cost, the Gauss–Newton solve — is model-independent
 (:class:`RtiNormalEquations`).
 
@@ -107,15 +107,22 @@ class LinearRows:
         self._pos, self._vel = flush_subnormal(new_pos), flush_subnormal(new_vel)
         return out
 
-    def evaluate(self, theta: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Outputs ``(r, p)`` and Jacobian ``(r, p, dim)`` of rows ``(r, 3, m)`` at ``theta``."""
+    def evaluate(
+        self, theta: np.ndarray, rows: np.ndarray, columns: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Outputs ``(r, p)`` and Jacobian ``(r, p, dim)`` of rows ``(r, 3, m)`` at ``theta``.
+
+        ``columns``: only these columns of the Jacobian (indices into ``theta``), in that order.
+        """
         m, p = self.m, self.p
         th = theta.reshape(3, m)
         Q = (rows * th).sum(axis=1)
         CQ = (Q @ self._stack).reshape(-1, p, m)
         Y = (CQ @ Q[:, :, None])[:, :, 0]
-        J = 2.0 * CQ[:, :, None, :] * rows[:, None, :, :]
-        return Y, J.reshape(-1, p, 3 * m)
+        if columns is not None and columns.size == m and columns[0] == 2 * m:
+            return Y, 2.0 * CQ * rows[:, None, 2, :]  # only the load's columns left (the usual case)
+        J = (2.0 * CQ[:, :, None, :] * rows[:, None, :, :]).reshape(-1, p, 3 * m)
+        return Y, (J if columns is None or columns.size == 3 * m else J[:, :, columns])
 
 
 class RtiNormalEquations:
@@ -164,7 +171,7 @@ class RtiNormalEquations:
         self.H = np.array(H0, dtype=float, order="F")
         self.g = np.array(g0, dtype=float)
         self._H0 = self.H.copy()  # prior + marginalised part, for the drift check only
-        self._Hf = np.zeros(self.H.shape)  # frozen rows, for the drift check only
+        self._Hf = np.zeros(self.H.shape, order="F")  # frozen rows (lower triangle), for the drift check only
         self.chi2 = 0.0  # window misfit at the rows' linearisations
         self.n_data = 0
         self.absorbed = 0
@@ -186,10 +193,8 @@ class RtiNormalEquations:
 
     def _relinearize(self, theta: np.ndarray, slots: np.ndarray) -> None:
         a = self.active
-        Y, J = self.model.evaluate(theta, self._rows[slots])
+        Y, J = self.model.evaluate(theta, self._rows[slots], a)
         D = self.scale[a]
-        if a.size < J.shape[2]:
-            J = J[:, :, a]
         sw = self._sw[slots]
         Jw = J * (sw[:, :, None] * D)
         r = sw * (self._y[slots] - Y)
@@ -240,8 +245,7 @@ class RtiNormalEquations:
         if leaving is not None:
             # Frozen in H, g (arrival cost): only its misfit leaves the window's adequacy sum.
             nd = self.active.size
-            Jl = self._J[leaving, :, :nd]
-            self._Hf += Jl.T @ Jl
+            self._Hf = blas.dsyrk(1.0, self._J[leaving, :, :nd], beta=1.0, c=self._Hf, trans=1, lower=1, overwrite_c=1)
             self.chi2 -= float(self._r2[leaving])
             self.n_data -= int(self._n[leaving])
             self._J[leaving] = 0.0
@@ -279,7 +283,7 @@ class RtiNormalEquations:
         slots = (self._head + np.arange(self._size)) % self._cap
         J = self._J[slots, :, : keep.size].reshape(-1, keep.size)
         self._H0 = self.H - J.T @ J
-        self._Hf = np.zeros(self.H.shape)
+        self._Hf = np.zeros(self.H.shape, order="F")
 
     def relinearize_all(self, theta: np.ndarray) -> None:
         """Re-linearise every window row at ``theta`` (start-up only: not bounded per sample)."""
@@ -301,5 +305,6 @@ class RtiNormalEquations:
         slots = (self._head + np.arange(self._size)) % self._cap
         nd = self.active.size
         J = self._J[slots, :, :nd].reshape(-1, nd)
-        ref = self._H0 + self._Hf + J.T @ J
+        Hf = np.tril(self._Hf)
+        ref = self._H0 + Hf + np.tril(Hf, -1).T + J.T @ J
         return float(np.max(np.abs(self.hessian() - ref)) / np.max(np.abs(ref)))
