@@ -374,3 +374,19 @@ def test_rss_growth_over_ten_minutes_of_stream(protocol, streamed):
             t += 1e-3
             est.push(t, y)
     assert rss() - r0 < 10.0
+
+
+def test_bad_row_keeps_the_record_and_exits_2(small_cli, tmp_path):
+    from wingopt.cli import main
+
+    d, lines, _ = small_cli
+    bad = lines[:100] + ["0.0995," + lines[100].split(",", 1)[1]] + lines[100:]  # an off-grid time
+    live = tmp_path / "bad.csv"
+    live.write_text("\n".join(bad) + "\n")
+    out = tmp_path / "out"
+    assert main(["identify", str(d / "small.toml"), "--follow", str(live), "--out", str(out), *FAST]) == 2
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["stopped"].startswith("bad input:") and "irregular sampling" in summary["stopped"]
+    assert summary["samples"] == 99 == len(_lift_rows(out))
+    assert main(["identify", str(d / "small.toml"), "--data", "-", "--method", "jekf", "--out", str(out)]) == 2
+    assert main(["identify", str(d / "small.toml"), "--follow", str(live), "--print-every", "0", "--out", "x"]) == 2

@@ -8,7 +8,9 @@ directory (the hidden sibling ``.OUT.tmp-*`` of ``--out``, readable while the ru
 stops at the end marker line ``# end``, at the end of standard input, after ``--idle-timeout``
 seconds without a new line, or on SIGTERM / SIGINT; then ``summary.json`` is written and the
 directory is moved to ``--out`` atomically. Every sample's estimate is in ``lift.csv`` exactly once
-(gap rows filled by the reader included, marked ``phase``).
+(gap rows filled by the reader included). A bad row (irregular time, a non-numeric cell) ends the
+stream: the record so far is written (``stopped``: ``bad input: ...``), then the one-line error
+(exit 2).
 """
 
 from __future__ import annotations
@@ -183,31 +185,40 @@ def run_stream(args, mhe_settings) -> int:
         with ResultDirectory(args.out) as tmp, LiveCsv(tmp / "lift.csv", COLUMNS) as live:
             log.info("streaming estimates appended to %s", tmp / "lift.csv")
             print(",".join(COLUMNS), flush=True)
-            for line in lines:
-                for t, y in parser.feed(line):
-                    c0, w0 = time.thread_time(), time.perf_counter()
-                    e = est.push(t, y)
-                    cpu.add(time.thread_time() - c0)
-                    wall.add(time.perf_counter() - w0)
-                    row = (e.t, e.lift, e.lift_std, e.chi2_per_datum, int(e.adequate), e.phase)
-                    live.append(row)
-                    if not e.adequate and e.phase == "tracking":
-                        bad += 1
-                        first_bad = e.t if first_bad is None else first_bad
-                    if e.k % args.print_every == 0:
-                        print(",".join(_fmt(v) for v in row), flush=True)
-                if parser.ended:
-                    lines.reason = "end marker"
-                    break
-                if stop.get("signal"):
-                    lines.reason = stop["signal"]
-                    break
+            failure = None
+            try:
+                for line in lines:
+                    for t, y in parser.feed(line):
+                        c0, w0 = time.thread_time(), time.perf_counter()
+                        e = est.push(t, y)
+                        cpu.add(time.thread_time() - c0)
+                        wall.add(time.perf_counter() - w0)
+                        row = (e.t, e.lift, e.lift_std, e.chi2_per_datum, int(e.adequate), e.phase)
+                        live.append(row)
+                        if not e.adequate and e.phase == "tracking":
+                            bad += 1
+                            first_bad = e.t if first_bad is None else first_bad
+                        if e.k % args.print_every == 0:
+                            print(",".join(_fmt(v) for v in row), flush=True)
+                    if parser.ended:
+                        lines.reason = "end marker"
+                        break
+                    if stop.get("signal"):
+                        lines.reason = stop["signal"]
+                        break
+            except InputError as exc:
+                # A bad row ends the stream, but the estimates so far are kept (hours of them, maybe):
+                # the record is written, then the error is reported (exit 2).
+                failure = exc
+                lines.reason = f"bad input: {exc}"
             summary = _summary(est, parser, lines.reason, cpu, wall, bad, first_bad, source, problem, live.rows)
             summary["wall_s"] = time.perf_counter() - t_start
             write_json(tmp / "summary.json", to_jsonable(summary))
     finally:
         for sig, h in previous.items():
             signal.signal(sig, h)
+    if failure is not None:
+        raise failure
     line = f"mhe-stream: {summary['samples']} samples, lift {summary['lift_N']:.5g} N"
     if summary["lift_std_N"] is not None:
         line += f" ± {summary['lift_std_N']:.2g}"
