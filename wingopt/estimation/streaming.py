@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -50,12 +50,13 @@ from scipy.stats import chi2 as chi2_dist
 
 from wingopt.errors import InputError
 from wingopt.estimation.data import Measurements
-from wingopt.estimation.mhe import MHESettings, MovingHorizonEstimator
+from wingopt.estimation.mhe import MovingHorizonEstimator
 from wingopt.estimation.mhe_consistency import SIGNIFICANCE
 from wingopt.estimation.mhe_model import ReducedModel
 from wingopt.estimation.mhe_start import smooth_load_shapes
 from wingopt.estimation.regularization import estimate_noise_std
 from wingopt.estimation.streaming_rows import LinearRows, RtiNormalEquations
+from wingopt.estimation.streaming_types import Estimate, StreamSettings
 from wingopt.membrane import MembraneModel, bubble
 
 __all__ = ["StreamSettings", "Estimate", "StreamingEstimator"]
@@ -63,85 +64,6 @@ __all__ = ["StreamSettings", "Estimate", "StreamingEstimator"]
 log = logging.getLogger(__name__)
 
 _JITTER = 0.01  # relative deviation of a time step from the sample period that is tolerated
-
-
-@dataclass(frozen=True)
-class StreamSettings:
-    """Configuration of the streaming estimator.
-
-    Parameters
-    ----------
-    mhe : MHESettings
-        Window length (``window_s`` or ``window``), modes, load space, lambda rule, start-up; the
-        batch start-up uses them as they are. Only the constant load model is supported.
-    startup_windows : float
-        The batch start-up runs once this many windows of samples have arrived (2: room to skip a
-        load onset of up to one window, as the batch does).
-    relinearize : int
-        Window rows re-linearised per sample (round robin) besides the new one.
-    min_samples : int
-        Samples before the first (provisional) estimate (the noise estimate needs ~20).
-    trust : float
-        Largest Gauss–Newton step in the scaled unknowns (2-norm; the provisional phase starts
-        far from the optimum).
-    provisional_state_modes : int
-        The provisional phase estimates the initial state of this many lowest modes only; the
-        others are held at the prior (the problem's bubble, or rest). A cheaper, cruder estimate
-        (16 + m instead of 3m unknowns) until the batch start-up replaces it.
-    """
-
-    mhe: MHESettings = field(default_factory=MHESettings)
-    startup_windows: float = 2.0
-    relinearize: int = 4
-    min_samples: int = 20
-    trust: float = 1.0
-    provisional_state_modes: int = 8
-
-    def __post_init__(self) -> None:
-        if self.mhe.load_model != "constant":
-            raise InputError(f"streaming load_model = {self.mhe.load_model!r}: only 'constant' is supported")
-        if not (np.isfinite(self.startup_windows) and self.startup_windows >= 1):
-            raise InputError(f"streaming startup_windows = {self.startup_windows!r}: expected a number >= 1")
-        if int(self.relinearize) != self.relinearize or self.relinearize < 0:
-            raise InputError(f"streaming relinearize = {self.relinearize!r}: expected a non-negative integer")
-        if int(self.min_samples) != self.min_samples or self.min_samples < 20:
-            raise InputError(f"streaming min_samples = {self.min_samples!r}: expected an integer >= 20")
-        if int(self.provisional_state_modes) != self.provisional_state_modes or self.provisional_state_modes < 0:
-            raise InputError(
-                f"streaming provisional_state_modes = {self.provisional_state_modes!r}: expected an integer >= 0"
-            )
-        if not self.trust > 0:
-            raise InputError(f"streaming trust = {self.trust!r}: expected a positive number")
-
-
-@dataclass(frozen=True, eq=False)
-class Estimate:
-    """The estimate after one sample.
-
-    Attributes
-    ----------
-    k, t : int, float
-        Sample index (from 0) and time (s).
-    lift, lift_std : float
-        Lift (N) and its 1-sigma (N); NaN and inf while ``phase == "waiting"``.
-    load : ndarray or None
-        Load coefficients in the load space (``None`` while waiting).
-    chi2_per_datum : float
-        Misfit per datum of the window (1 for data explained to the noise level).
-    adequate : bool
-        Misfit within the chi-square bound (see the module docstring).
-    phase : str
-        ``waiting``, ``provisional``, ``startup`` (the sample that ran the batch start-up) or ``tracking``.
-    """
-
-    k: int
-    t: float
-    lift: float
-    lift_std: float
-    load: np.ndarray | None
-    chi2_per_datum: float
-    adequate: bool
-    phase: str
 
 
 class StreamingEstimator:
@@ -156,6 +78,11 @@ class StreamingEstimator:
         Sensor noise std; default: the problem's ``noise_std``, else estimated from the data.
     initial_load, initial_deflection : float, optional
         Sign prior and prior initial bubble, as for :meth:`MovingHorizonEstimator.setup`.
+    rows : callable, optional
+        ``rows(reduced) -> row model`` (:mod:`wingopt.estimation.streaming_rows`: ``dim``, ``p``,
+        ``m``, ``row_shape``, ``lift_row``, ``load_slice``, ``reduced``, ``row_data()``,
+        ``evaluate(theta, rows, columns)``, optionally ``decay_schedule()``); default
+        :class:`~wingopt.estimation.streaming_rows.LinearRows`, the linear membrane.
     """
 
     def __init__(
@@ -165,8 +92,10 @@ class StreamingEstimator:
         noise_std: np.ndarray | float | None = None,
         initial_load: float | None = None,
         initial_deflection: float | None = None,
+        rows: Callable[[ReducedModel], Any] = LinearRows,
     ) -> None:
         self.model = model
+        self._make_rows = rows
         self.settings = s = settings or StreamSettings()
         self._batch = MovingHorizonEstimator(model, s.mhe)
         self.reduced = self._batch.reduced
@@ -286,7 +215,7 @@ class StreamingEstimator:
         lift_v = float(red.lift_row @ v)
         v = v * np.sign(lift_v * self.initial_load) if lift_v != 0 else v
         theta = np.concatenate([x_prior, v * abs(self.initial_load) * problem.width * problem.height])
-        rows = LinearRows(red)
+        rows = self._make_rows(red)
         # Provisional lambda: the batch's natural scale (data information along the smoothest load
         # shape over its roughness) at the grid's geometric middle, from the samples so far.
         seqs = np.array([rows.row_data() for _ in range(Y.shape[0])])
@@ -319,7 +248,7 @@ class StreamingEstimator:
         g0 = np.concatenate([Dx * x_prior / sx**2, np.zeros(m)])
         self._rows, self.lam, self._level = rows, float(lam), float(level)
         self._core = RtiNormalEquations(rows, window, H0, g0, D)
-        self._decay = rows.decay_schedule()
+        self._decay = rows.decay_schedule() if hasattr(rows, "decay_schedule") else []
         d = self.settings.mhe.band_decades
         self._band_x = np.linspace(-d, d, 9) if d > 0 else np.zeros(1)
         self._band_var = np.full(self._band_x.size, np.nan)
@@ -354,7 +283,7 @@ class StreamingEstimator:
         m = red.m
         self._D = np.asarray(batch.scale, dtype=float)[: 3 * m].copy()
         attempts = batch.onset.get("attempts") or [{}]
-        rows = LinearRows(red)
+        rows = self._make_rows(red)
         sx = batch.state_prior * self._D[: 2 * m]
         self._begin(rows, batch.N, batch.lam, sx, np.asarray(batch.x_prior), attempts[-1].get("level", 1.0))
         yw, sw = self._row(Y[origin:])
