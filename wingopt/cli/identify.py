@@ -14,6 +14,7 @@ import re
 
 import numpy as np
 
+from wingopt.cli import follow
 from wingopt.errors import InputError
 from wingopt.results import to_jsonable
 
@@ -28,6 +29,8 @@ examples:
   wingopt identify membrane --load L3 --noise 5 --seed 2 --load-space free --out runs/L3free
   wingopt identify membrane --load L2 --noise 1 --seed 0 --method jekf --out runs/L2jekf
   wingopt identify membrane --data wind_tunnel.csv --out runs/tunnel --json
+  wingopt identify membrane --follow daq.csv --print-every 100 --idle-timeout 5 --out runs/live
+  daq_reader | wingopt identify membrane --data - --out runs/live
   wingopt identify membrane --data gusty.csv --load-model random_walk --load-timescale 0.5 --out runs/gust
   (CSV: header 't,S1,S2,S3,S4', time in s, dimensionless stretch; empty cells = missing samples)"""
 
@@ -68,7 +71,12 @@ def register(sub, common) -> None:
     p.add_argument("problem", help="problem file (.toml) or built-in name (membrane)")
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--load", choices=("L1", "L2", "L3", "consistency"), help="simulate this load case")
-    src.add_argument("--data", metavar="FILE.csv", help="measured series: t column + one column per sensor")
+    src.add_argument(
+        "--data", metavar="FILE.csv", help="measured series: t column + one column per sensor ('-': stream from stdin)"
+    )
+    src.add_argument(
+        "--follow", metavar="FILE.csv", help="stream a CSV that grows: one estimate per sample as rows arrive"
+    )
     p.add_argument("--noise", default="1", help="simulated noise in PERCENT of each sensor's peak (default 1)")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     p.add_argument("--truth-mesh", default="49x25", help="mesh of the simulated truth (default 49x25)")
@@ -133,6 +141,7 @@ def register(sub, common) -> None:
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--out", required=True, help="output directory (replaced atomically)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    follow.add_options(p)
     p.set_defaults(func=run)
 
 
@@ -202,6 +211,8 @@ def run(args) -> int:
     if args.method != "mhe" and (args.backend != "numpy" or args.load_space != "fixed" or args.state_prior != "1"):
         raise InputError("--backend, --load-space and --state-prior apply to --method mhe only")
     settings = _settings(args) if args.method == "mhe" else None
+    if follow.wants_stream(args):
+        return follow.run_stream(args, settings)
     if args.load and not args.t_end > 0:
         raise InputError(f"t-end = {args.t_end!r}: expected a positive duration (s)")
     if args.noise_std is not None and not (np.isfinite(args.noise_std) and args.noise_std > 0):

@@ -1,0 +1,148 @@
+"""Parsing a sensor CSV line by line, for a stream that grows (``wingopt identify --follow``).
+
+Same format and checks as :func:`wingopt.estimation.csv_data.read_measurements` (header with
+``t`` and one column per sensor, ``#`` comments, empty cells / ``nan`` / ``NA`` missing, values
+that cannot be a stretch refused), applied one row at a time: the sample period is the first time
+step; a later step that is a whole multiple of it is a gap, filled with missing rows; any other
+step is refused. A comment line ``# end`` (any case) marks the end of the stream.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+
+import numpy as np
+
+from wingopt.errors import DataFileError
+from wingopt.estimation.csv_data import MAX_STRETCH, _cell
+
+__all__ = ["CsvRowParser", "END_MARKER"]
+
+END_MARKER = "# end"
+"""A line ``# end`` (case and inner spaces free) ends the stream."""
+
+_END = re.compile(r"#\s*end\s*", re.IGNORECASE)
+_JITTER = 0.01  # as the batch reader: relative deviation of a step from a whole multiple of dt
+
+
+class CsvRowParser:
+    """Turns CSV lines into uniformly sampled rows ``(t, values)``; one instance per stream.
+
+    Parameters
+    ----------
+    sensor_names : sequence of str
+        The problem's sensors, in its order.
+    source : str
+        Name used in error messages (file name or ``<stdin>``).
+
+    Attributes
+    ----------
+    ended : bool
+        The end marker was read.
+    rows, missing_rows, gap_rows : int
+        Data rows read, rows with a missing value, rows inserted for gaps.
+    ignored_columns : list of str
+    """
+
+    def __init__(self, sensor_names, source: str = "<stream>") -> None:
+        self.sensor_names = tuple(sensor_names)
+        self.source = source
+        self.line = 0
+        self.ended = False
+        self.rows = self.missing_rows = self.gap_rows = 0
+        self.ignored_columns: list[str] = []
+        self._cols: list[int] | None = None
+        self._it = 0
+        self._ncol = 0
+        self._t0 = self._dt = None
+        self._index = 0  # sample index of the last row on the uniform grid
+        self._t_last = None
+
+    @property
+    def dt(self) -> float | None:
+        return self._dt
+
+    def feed(self, line: str) -> list[tuple[float, np.ndarray]]:
+        """Parse one line (without its newline); returns the samples it yields (gap rows first)."""
+        self.line += 1
+        text = line.strip()
+        if self.line == 1:
+            text = text.lstrip("\ufeff")
+        if not text:
+            return []
+        if text.startswith("#"):
+            if _END.fullmatch(text):
+                self.ended = True
+            return []
+        if self.ended:
+            raise DataFileError(f"{self.source}:{self.line}: data after the end marker {END_MARKER!r}")
+        row = next(csv.reader([text]))
+        if self._cols is None:
+            self._header(row)
+            return []
+        return self._row(row)
+
+    def _header(self, row: list[str]) -> None:
+        name, ln = self.source, self.line
+        header = [h.strip() for h in row]
+        if "t" not in header:
+            raise DataFileError(f"{name}:{ln}: header {header}: expected a 't' column (time in s)")
+        missing = [s for s in self.sensor_names if s not in header]
+        if missing:
+            raise DataFileError(
+                f"{name}:{ln}: missing sensor column(s) {', '.join(missing)}: expected one column per sensor "
+                f"of the problem ({', '.join(self.sensor_names)})"
+            )
+        dup = next((h for h in header if header.count(h) > 1), None)
+        if dup is not None:
+            raise DataFileError(f"{name}:{ln}: column {dup!r} appears twice")
+        self._it = header.index("t")
+        self._cols = [header.index(s) for s in self.sensor_names]
+        self._ncol = len(header)
+        self.ignored_columns = [h for h in header if h != "t" and h not in self.sensor_names]
+
+    def _row(self, row: list[str]) -> list[tuple[float, np.ndarray]]:
+        name, ln = self.source, self.line
+        if len(row) != self._ncol:
+            raise DataFileError(f"{name}:{ln}: {len(row)} values for {self._ncol} columns")
+        t = _cell(row[self._it], ln, "t", name)
+        if math.isnan(t):
+            raise DataFileError(f"{name}:{ln}: t is missing: every row needs a time")
+        vals = np.array([_cell(row[c], ln, s, name) for c, s in zip(self._cols, self.sensor_names)])
+        finite = vals[np.isfinite(vals)]
+        if finite.size and float(np.max(np.abs(finite))) > MAX_STRETCH:
+            raise DataFileError(
+                f"{name}:{ln}: sensor value {float(np.max(np.abs(finite))):.4g}: expected the dimensionless stretch "
+                "(typically 1e-4..1e-1); are the values in percent or microstrain?"
+            )
+        out: list[tuple[float, np.ndarray]] = []
+        if self._t_last is None:
+            self._t0, self._index = t, 0
+        else:
+            step = t - self._t_last
+            if not step > 0:
+                raise DataFileError(
+                    f"{name}:{ln}: t = {t!r} after {self._t_last!r}: expected strictly increasing times"
+                )
+            if self._dt is None:
+                self._dt = step
+            ratio = step / self._dt
+            whole = round(ratio)
+            if whole < 1 or abs(ratio - whole) > _JITTER:
+                raise DataFileError(
+                    f"{name}:{ln}: irregular sampling (step {step:.6g} s, sample period {self._dt:.6g} s): "
+                    "resample the data to a uniform time step"
+                )
+            for _ in range(whole - 1):  # a gap: missing rows on the uniform grid
+                self._index += 1
+                self.gap_rows += 1
+                out.append((self._t0 + self._index * self._dt, np.full(len(self._cols), np.nan)))
+            self._index += 1
+        self._t_last = t
+        self.rows += 1
+        self.missing_rows += int(np.isnan(vals).any())
+        t_grid = t if self._dt is None else self._t0 + self._index * self._dt
+        out.append((t_grid, vals))
+        return out
