@@ -35,10 +35,10 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from wingopt.estimation.mhe import mhe_identify  # noqa: E402
-from wingopt.estimation.protocol import simulate_case  # noqa: E402
 from wingopt.estimation.streaming import StreamingEstimator, StreamSettings  # noqa: E402
 from wingopt.membrane import MembraneModel  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
+from wingopt.workflows.protocols import simulate_case  # noqa: E402
 
 
 def rss_mb() -> float:

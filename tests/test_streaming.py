@@ -20,11 +20,11 @@ import pytest
 from wingopt.errors import DataFileError, InputError
 from wingopt.estimation.csv_stream import CsvRowParser
 from wingopt.estimation.mhe import MHESettings, mhe_identify
-from wingopt.estimation.protocol import simulate_case
 from wingopt.estimation.streaming import StreamingEstimator, StreamSettings
-from wingopt.estimation.streaming_rows import LinearRows, RtiNormalEquations
+from wingopt.estimation.streaming.rows import LinearRows, RtiNormalEquations
 from wingopt.membrane import MembraneModel
 from wingopt.problem import PROBLEMS_DIR
+from wingopt.workflows.protocols import simulate_case
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

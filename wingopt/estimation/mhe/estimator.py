@@ -294,6 +294,11 @@ class MovingHorizonEstimator(StartUp, WindowInformation):
         return self.result()
 
     @property
+    def window_solution(self) -> WindowSolution:
+        """The latest window's solution (unknowns ``theta``, Hessian, status)."""
+        return self._sol
+
+    @property
     def current_lift(self) -> float:
         """Lift (N) of the latest window's load estimate."""
         m = self.reduced.m

@@ -33,7 +33,7 @@ The lift's band integrates lambda out like the batch (:attr:`MHESettings.band_de
 one of the 9 lambda points per sample (the band is the mean over the latest 9 samples).
 Adequacy: the misfit per datum of the window (residuals at the rows' latest linearisations)
 against ``level * chi2_{1-a}(n) / n`` with the start-up's misfit level
-(:mod:`wingopt.estimation.mhe_consistency`, ``a = SIGNIFICANCE``); a ``False`` flag means the data
+(:mod:`wingopt.estimation.mhe.consistency`, ``a = SIGNIFICANCE``); a ``False`` flag means the data
 of the last window are not explained by a constant load (the streaming estimator does not restart;
 the batch does).
 """
@@ -52,12 +52,12 @@ from scipy.stats import chi2 as chi2_dist
 from wingopt.errors import InputError
 from wingopt.estimation.data import Measurements
 from wingopt.estimation.mhe import MovingHorizonEstimator
-from wingopt.estimation.mhe_consistency import SIGNIFICANCE
-from wingopt.estimation.mhe_model import ReducedModel
-from wingopt.estimation.mhe_start import smooth_load_shapes
-from wingopt.estimation.regularization import estimate_noise_std
-from wingopt.estimation.streaming_rows import LinearRows, RtiNormalEquations
-from wingopt.estimation.streaming_types import Estimate, StreamSettings
+from wingopt.estimation.mhe.consistency import SIGNIFICANCE
+from wingopt.estimation.mhe.model import ReducedModel
+from wingopt.estimation.mhe.start import smooth_load_shapes
+from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
+from wingopt.estimation.streaming.rows import LinearRows, RtiNormalEquations
+from wingopt.estimation.streaming.types import Estimate, StreamSettings
 from wingopt.membrane import MembraneModel, bubble
 
 __all__ = ["StreamSettings", "Estimate", "StreamingEstimator"]
@@ -80,10 +80,10 @@ class StreamingEstimator:
     initial_load, initial_deflection : float, optional
         Sign prior and prior initial bubble, as for :meth:`MovingHorizonEstimator.setup`.
     rows : callable, optional
-        ``rows(reduced) -> row model`` (:mod:`wingopt.estimation.streaming_rows`: ``dim``, ``p``,
+        ``rows(reduced) -> row model`` (:mod:`wingopt.estimation.streaming.rows`: ``dim``, ``p``,
         ``m``, ``row_shape``, ``lift_row``, ``load_slice``, ``reduced``, ``row_data()``,
         ``evaluate(theta, rows, columns)``, optionally ``decay_schedule()``); default
-        :class:`~wingopt.estimation.streaming_rows.LinearRows`, the linear membrane.
+        :class:`~wingopt.estimation.streaming.rows.LinearRows`, the linear membrane.
     """
 
     def __init__(
@@ -259,7 +259,7 @@ class StreamingEstimator:
         ident = self.model.problem.identification
         sigma = self._noise_arg if self._noise_arg is not None else ident.noise_std
         if sigma is None:
-            sigma = estimate_noise_std(Y)
+            sigma = estimate_noise_std(Y, MHE_NOISE, self.model.problem.sensor_names)
         sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (self.p,)).copy()
         if not np.all(np.isfinite(sigma) & (sigma > 0)):
             raise InputError(f"noise_std = {sigma.tolist()}: expected positive values")
@@ -278,7 +278,7 @@ class StreamingEstimator:
         red = batch.reduced
         # The first window's optimum (state at the window start = our origin, constant load).
         # Private attribute of the batch estimator: it has no public accessor for its window solution.
-        theta = np.array(batch._sol.theta, dtype=float)
+        theta = np.array(batch.window_solution.theta, dtype=float)
         origin = int(batch.start)
         self.sigma = np.asarray(batch.noise_std, dtype=float)
         m = red.m

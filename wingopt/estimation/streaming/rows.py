@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import blas
 
-from wingopt.estimation.mhe_model import ReducedModel, flush_subnormal
+from wingopt.estimation.mhe.model import ReducedModel, flush_subnormal
 
 __all__ = ["LinearRows", "RtiNormalEquations", "DECAY_EXPONENT"]
 
