@@ -162,6 +162,9 @@ class Engine:
             "distributed.scheduler.allowed-failures": s.retries,
             "distributed.nanny.pre-spawn-environ": dict(BLAS_ENV),
         }
+        # dask logs every start and stop at INFO; keep its warnings (worker deaths) unless debugging.
+        if logging.getLogger("wingopt").getEffectiveLevel() > logging.DEBUG:
+            logging.getLogger("distributed").setLevel(logging.WARNING)
         with dask.config.set(config):
             if s.mode == "local":
                 from distributed import LocalCluster
@@ -299,7 +302,10 @@ class Engine:
                 if fut.status == "finished":
                     yield fut.result()
                 else:
-                    exc = fut.exception()
+                    try:
+                        exc = fut.exception()
+                    except Exception as err:  # cancelled (e.g. the scheduler restarted)
+                        exc = err
                     log.warning("task %s failed after %d retries: %s", task.key, retries, exc)
                     yield _failure(task, exc)
                 fut.release()

@@ -231,7 +231,7 @@ def parse_spec(data: dict, source: str = "<memory>", base: Path | None = None) -
         raise _err(source, "", "cluster", cluster, "a table of dask-jobqueue settings")
     runs, seen = [], set()
     for i, case in enumerate(cases):
-        where = f"[[cases]] {i + 1}: "
+        where = f"[[cases]] {i + 1} " if "cases" in data else "[grid] "
         fixed = {k: _check_axis(source, where, k, v) for k, v in case.items()}
         both = sorted(set(fixed) & set(axes))
         if both:
