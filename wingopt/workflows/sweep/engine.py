@@ -179,7 +179,10 @@ class Engine:
                 )
                 self.client = Client(self._cluster)
             elif s.mode == "scheduler":
-                self.client = Client(s.scheduler)
+                try:
+                    self.client = Client(s.scheduler, timeout=30)
+                except (OSError, TimeoutError, ValueError) as exc:
+                    raise InputError(f"scheduler = {s.scheduler!r}: cannot connect ({exc})") from None
             else:
                 self._cluster = _jobqueue_cluster(s.mode, s.cluster)
                 self._cluster.scale(jobs=s.workers or int(s.cluster.get("jobs", 1)))
