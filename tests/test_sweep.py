@@ -229,3 +229,22 @@ def test_sweep_command_serial_then_resume_on_an_attached_scheduler(spec_file, tm
     summary = json.loads(capsys.readouterr().out.splitlines()[-1])
     assert summary["ran"] == 0 and summary["recorded"] == 2 and summary["mode"] == "scheduler"
     assert main(["sweep", str(tmp_path / "missing.toml"), "--out", str(out)]) == 2
+
+
+def test_compare_resumes_the_records_of_the_pre_engine_compare(tmp_path, capsys):
+    """Records without a key (written by compare before the engine) are matched by their fields."""
+    problem = tmp_path / "small.toml"
+    problem.write_text((ROOT / "problems" / "membrane.toml").read_text().replace("nodes = [25, 13]", "nodes = [13, 7]"))
+    out = tmp_path / "cmp"
+    argv = ["compare", str(problem), "--loads", "L1", "--noise", "5", "--seeds", "1", "--methods", "mhe"]
+    argv += ["--no-oracle", "--truth-mesh", "25x13", "--out", str(out), "--json"]
+    assert main(argv) == 0
+    first = json.loads(capsys.readouterr().out.splitlines()[-1])
+    path = out / "records.jsonl"
+    old = [{k: v for k, v in r.items() if k not in ("key", "status", "params")} for r in read_records(path)]
+    path.write_text("".join(json.dumps(r) + "\n" for r in old))
+    assert main(argv + ["--resume"]) == 0
+    again = json.loads(capsys.readouterr().out.splitlines()[-1])
+    recs = read_records(path)
+    assert len(recs) == 1 and recs[0]["key"] == '{"load":"L1","method":"mhe","noise":0.05,"seed":0}'
+    assert again["comparison"][0]["load_error"] == first["comparison"][0]["load_error"]
