@@ -75,15 +75,16 @@ def main() -> None:
         "--records", nargs="*", default=[], help="compare records.jsonl files: task durations from them (cpu_s)"
     )
     ap.add_argument("--empty", type=int, default=300, help="empty tasks for the overhead (default 300)")
+    ap.add_argument("--throughput-only", action="store_true", help="only part 2 (rerun when the machine is idle)")
     args = ap.parse_args()
     load0 = os.getloadavg()
     print(f"machine: {os.cpu_count()} CPUs, load average {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f} (1/5/15 min)")
     out: dict = {"cpus": os.cpu_count(), "load_start": load0}
 
     # 1. overhead per task
-    n = 50 if args.quick else args.empty
+    n = 0 if args.throughput_only else 50 if args.quick else args.empty
     empties = [SweepTask(f"e{i}", empty_task) for i in range(n)]
-    for workers in (None, 1, 2):
+    for workers in (None, 1, 2) if n else ():
         wall, _ = timed_run(empties, [], workers)
         name = "serial" if workers is None else f"{workers} workers"
         out[f"overhead_ms_{name}"] = 1e3 * wall / n
@@ -107,6 +108,9 @@ def main() -> None:
         )
     out.update(rates=rates, cpu_per_task=cpu, speedup=rates[2] / rates[1])
     print(f"speed-up 2 vs 1 workers: {rates[2] / rates[1]:.2f}x (target >= 1.7x on an idle 2-core machine)")
+    if args.throughput_only:
+        print(json.dumps(out, default=float))
+        return
 
     # 3. durations per method at the full protocol, then the predictions
     recs = [r for f in args.records for r in read_records(f) if r.get("status", "ok") == "ok" and "cpu_s" in r]
