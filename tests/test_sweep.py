@@ -248,3 +248,16 @@ def test_compare_resumes_the_records_of_the_pre_engine_compare(tmp_path, capsys)
     recs = read_records(path)
     assert len(recs) == 1 and recs[0]["key"] == '{"load":"L1","method":"mhe","noise":0.05,"seed":0}'
     assert again["comparison"][0]["load_error"] == first["comparison"][0]["load_error"]
+
+
+def test_a_batch_cluster_without_dask_jobqueue_names_the_extra(spec_file, tmp_path, capsys):
+    pytest.importorskip("distributed")
+    try:
+        import dask_jobqueue  # noqa: F401
+    except ImportError:
+        pass
+    else:
+        pytest.skip("dask-jobqueue is installed")
+    assert main(["sweep", str(spec_file), "--out", str(tmp_path / "x"), "--cluster", "slurm"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "pip install 'wingopt[cluster]'" in err and len(err.splitlines()) == 1
