@@ -101,10 +101,13 @@ def main() -> None:
         rates[workers] = len(tasks) / wall
         cpu[workers] = float(np.mean([r["cpu_s"] for r in recs]))
         dur = float(np.mean([r["duration_s"] for r in recs]))
+        # CPU seconds the tasks got per wall second: the cores the OS actually granted the workers.
+        cores = sum(r["cpu_s"] for r in recs) / wall
+        out[f"effective_cores_{workers}"] = cores
         print(
             f"comparison subset ({len(tasks)} MHE tasks + {len(shared)} shared inputs), {workers} worker(s): "
             f"{wall:.1f} s, {rates[workers]:.3f} tasks/s; per task {dur:.2f} s wall, {cpu[workers]:.2f} s CPU; "
-            f"load average now {os.getloadavg()[0]:.2f}"
+            f"effective cores {cores:.2f}; load average now {os.getloadavg()[0]:.2f}"
         )
     out.update(rates=rates, cpu_per_task=cpu, speedup=rates[2] / rates[1])
     print(f"speed-up 2 vs 1 workers: {rates[2] / rates[1]:.2f}x (target >= 1.7x on an idle 2-core machine)")
