@@ -19,7 +19,7 @@ from wingopt.errors import InputError
 from wingopt.workflows.studies import CleanCases, evaluate, protocol_sign, run_method
 from wingopt.workflows.sweep.engine import Engine, EngineSettings, SweepTask, blas_threads
 from wingopt.workflows.sweep.records import TIMING_FIELDS, RecordLog, by_key, read_records
-from wingopt.workflows.sweep.run import run_records, run_sweep
+from wingopt.workflows.sweep.run import run_records, run_sweep, sweep_tasks
 from wingopt.workflows.sweep.spec import load_spec, parse_spec
 
 # The workers unpickle this module's task functions by value (it is not importable there).
@@ -219,6 +219,12 @@ def test_spec_cases_cross_the_grid_and_overrides_reach_truth_and_estimator():
     run = spec.runs[1]
     assert run.truth_problem.material.prestrain == 0.06 and run.problem.material.prestrain == 0.05
     assert run.settings.window == 100 and spec.runs[-1].settings.window != 100
+    # Shared inputs: one truth per (truth problem, load), one model per estimator problem; estimator
+    # meshes share the truth (simulated on truth_mesh).
+    data["grid"]["mesh.nodes"] = [[13, 7], [25, 13]]
+    tasks, shared = sweep_tasks(parse_spec(data))
+    kinds = [s.key.split("/")[0] for s in shared]
+    assert len(tasks) == 16 and kinds.count("truth") == 4 and kinds.count("model") == 2
 
 
 def test_sweep_command_serial_then_resume_on_an_attached_scheduler(spec_file, tmp_path, cluster, capsys):

@@ -54,7 +54,9 @@ def sweep_tasks(spec: SweepSpec) -> tuple[list[SweepTask], list[SharedInput]]:
     tasks, shared = [], {}
     for run in spec.runs:
         model_key = f"model/{digest(run.problem)}"
-        truth_key = f"truth/{digest(run.truth_problem, run.load, run.truth_nodes, run.t_end)}/{run.load}"
+        # The truth's own mesh is truth_nodes: estimator meshes that differ share one truth.
+        tp = run.truth_problem if run.truth_nodes is None else run.truth_problem.with_mesh(run.truth_nodes)
+        truth_key = f"truth/{digest(tp, run.load, run.truth_nodes, run.t_end)}/{run.load}"
         shared.setdefault(model_key, SharedInput(model_key, build_model, (run.problem,)))
         args = (run.truth_problem, run.load, run.truth_nodes, run.t_end)
         shared.setdefault(truth_key, SharedInput(truth_key, simulate_clean, args))
