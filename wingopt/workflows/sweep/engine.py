@@ -213,7 +213,7 @@ class Engine:
     def n_workers(self) -> int:
         if self.client is None:
             return 1
-        return len(self.client.scheduler_info(n_workers=-1)["workers"])
+        return len(self.client.nthreads())
 
     def run_on_workers(self, fn: Callable[[], Any]) -> dict:
         """``fn()`` on every worker (or here in serial mode), by worker address."""
