@@ -29,10 +29,10 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from wingopt.estimation.mhe import MHESettings, MovingHorizonEstimator  # noqa: E402
-from wingopt.estimation.studies import load_field  # noqa: E402
 from wingopt.membrane import MembraneModel  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
 from wingopt.workflows.protocols import simulate_case  # noqa: E402
+from wingopt.workflows.studies import load_field  # noqa: E402
 
 CLOCK = time.perf_counter
 """Wall clock by default; ``--cpu`` switches to this process's CPU time (a shared machine's load

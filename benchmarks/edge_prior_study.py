@@ -29,10 +29,10 @@ import numpy as np
 
 from wingopt.estimation.load_space import LoadSpace, build_load_space
 from wingopt.estimation.mhe import MHESettings, MovingHorizonEstimator
-from wingopt.estimation.studies import CleanCases, evaluate, protocol_sign
 from wingopt.fe import DX, DXX, DY, DYY, VALUE, assemble, separable
 from wingopt.membrane import MembraneModel
 from wingopt.problem import load_problem
+from wingopt.workflows.studies import CleanCases, evaluate, protocol_sign
 
 
 def prior_family_space(model: MembraneModel, family: str) -> LoadSpace:

@@ -12,7 +12,7 @@ Sections (all printed; ``--sections`` picks some):
 * ``time``    — time-step error of the FvK truth integrator (substeps 1, 2, 4 against 8; 0.3 s).
 * ``speed``   — seconds per simulated second: Berger and the cubic modal model (with and without
   sensitivities), FvK, on 25x13 and 49x25.
-* ``mhe``     — the existing linear MHE (``wingopt.estimation.identify(problem, data=CSV)``, the
+* ``mhe``     — the existing linear MHE (``wingopt.workflows.identify(problem, data=CSV)``, the
   ``wingopt identify --data`` path) on FvK truth 49x25, estimator 25x13, 1 % noise, seed 0, for L1
   and LE (and the same loads on linear truth for comparison). Slow (FvK 49x25 records, ~1-2 min
   each); CSVs go to ``--tmp``.

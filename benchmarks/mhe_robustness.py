@@ -31,11 +31,11 @@ import numpy as np
 
 from wingopt.estimation import Measurements
 from wingopt.estimation.mhe import MHESettings, mhe_identify
-from wingopt.estimation.studies import load_field
 from wingopt.fe import integrate
 from wingopt.membrane import MembraneModel, add_noise, bubble, simulate_response
 from wingopt.problem import load_problem
 from wingopt.workflows.protocols import relative_l2
+from wingopt.workflows.studies import load_field
 
 RISE_S = 0.04
 T_END = 1.5

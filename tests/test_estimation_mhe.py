@@ -262,8 +262,8 @@ def test_start_from_rest_without_deflection_prior(small_model, small_problem):
         meas = Measurements(traj.t, y, small_problem.sensor_names)
         s = MHESettings(window=100, stride=50, modes=20)
         res = mhe_identify(small_model, meas, s, initial_deflection=0.0)
-        from wingopt.estimation.studies import load_field
         from wingopt.workflows.protocols import relative_l2
+        from wingopt.workflows.studies import load_field
 
         out[name] = (relative_l2(truth.space, load, load_field(res, small_model)), res.info["sign"])
     err, sign = out["L1"]
@@ -400,7 +400,7 @@ def test_l1_protocol_accuracy_and_lambda_from_data(membrane_problem, membrane_mo
     model = membrane_models[(25, 13)]
     meas = dataclasses.replace(case.measurements, noise_std=None)  # noise level estimated too
     res = mhe_identify(model, meas)
-    from wingopt.estimation.studies import load_field
+    from wingopt.workflows.studies import load_field
 
     err = case.load_error(load_field(res, model))
     assert err < 0.02  # measured 0.014

@@ -15,10 +15,10 @@ import pytest
 
 from wingopt.estimation.data import Measurements
 from wingopt.estimation.mhe import MHESettings, mhe_identify
-from wingopt.estimation.studies import load_field
 from wingopt.fe import integrate
 from wingopt.membrane import add_noise, simulate_response
 from wingopt.workflows.protocols import relative_l2
+from wingopt.workflows.studies import load_field
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 RISE_S = 0.04

@@ -3,8 +3,11 @@
 Runs the simulated protocol (truth on 49x25, estimator on the problem's mesh) for L1–L3 x noise
 levels x noise seeds with the MHE, the seed-faithful JEKF and the tuned JEKF, prints the table
 (mean and min–max over seeds) next to the seed's numbers and writes it, with every record, to
-``--out``. Records are appended to ``DIR/records.jsonl`` as they finish, so an interrupted study
-resumes where it stopped (``--resume``) and methods can be run separately and merged.
+``--out``. It is a preset sweep on the study engine (:mod:`wingopt.workflows.sweep`): ``--jobs N``
+runs N worker processes of a local dask cluster (1: in this process), ``--scheduler`` attaches to a
+running one. Records are appended to ``DIR/records.jsonl`` as they finish, so an interrupted study
+resumes where it stopped (``--resume``; nothing recorded is recomputed) and methods can be run
+separately and merged. Without ``--resume`` the records file is started afresh.
 """
 
 from __future__ import annotations
@@ -16,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from wingopt.errors import InputError
+from wingopt.errors import InputError, SolverError
+from wingopt.results import to_jsonable
 
 ORDER = 40
 
@@ -55,50 +59,47 @@ def register(sub, common) -> None:
     p.add_argument("--load-space", choices=("fixed", "free"), default="fixed", help="MHE load space")
     p.add_argument("--state-prior", default="1", help="MHE initial-state prior: a number (default 1) or 'evidence'")
     p.add_argument("--truth-mesh", default="49x25", help="mesh of the simulated truth (default 49x25)")
-    p.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
+    p.add_argument(
+        "--jobs", type=int, default=1, help="worker processes of a local dask cluster (default 1: in this process)"
+    )
     p.add_argument("--resume", action="store_true", help="keep the records already in DIR/records.jsonl")
     p.add_argument("--out", required=True, help="directory for records.jsonl, summary.json, comparison.md")
     p.add_argument("--doc", help="also write the markdown report to this file (e.g. docs/estimation_comparison.md)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON instead of the table")
+    from wingopt.cli.sweep import add_engine_options
+
+    add_engine_options(p, workers_flag="--jobs")
     p.set_defaults(func=run)
 
 
-def _records_path(out: Path) -> Path:
-    return out / "records.jsonl"
+def _runs(args, loads, noises, methods):
+    """The comparison table's runs and the sign study's, as (load, noise, seed, method)."""
+    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    table = [(ld, nz, sd, m) for ld in loads for nz in noises for sd in seeds for m in methods]
+    sign = [(ld, 0.05, sd, "mhe") for ld in loads for sd in range(args.sign_seeds)]
+    return (table if args.table == "yes" else []), sign
 
 
-def _load_records(path: Path):
-    from wingopt.estimation.studies import CaseRecord
+def _old_record_key(rec: dict) -> dict:
+    """Records of the pre-engine compare carry no key: derive it from their fields."""
+    from wingopt.workflows.sweep.protocol import task_key
 
-    if not path.exists():
-        return []
-    # One record per (load, noise, seed, method): the sign study re-runs the table's 5 % seeds and
-    # appends them again, and a resumed run must not count them twice (first one kept: the table's,
-    # which carries the oracle fields).
-    recs, seen = [], set()
-    for line in path.read_text().splitlines():
-        if line.strip():
-            d = json.loads(line)
-            key = (d.get("load"), d.get("noise"), d.get("seed"), d.get("method"))
-            if key not in seen:
-                seen.add(key)
-                recs.append(CaseRecord(**{k: d.get(k) for k in CaseRecord.__dataclass_fields__}))
-    return recs
+    if "key" not in rec and "load" in rec:
+        fields = {"load": rec["load"], "noise": rec["noise"], "seed": rec["seed"], "method": rec["method"]}
+        rec = {**rec, "key": task_key(fields), "status": "ok"}
+    return rec
 
 
 def run(args) -> int:
     from wingopt.cli.identify import parse_noise, state_prior_settings
+    from wingopt.cli.sweep import announce, engine_settings
     from wingopt.estimation.mhe import MHESettings
-    from wingopt.estimation.studies import (
-        METHODS,
-        comparison_markdown,
-        comparison_study,
-        consistency_study,
-        sign_and_band_study,
-        summarize,
-    )
     from wingopt.problem import load_problem, parse_mesh
-    from wingopt.results import to_jsonable
+    from wingopt.workflows.studies import METHODS, comparison_markdown, record_from_dict, summarize
+    from wingopt.workflows.sweep.engine import Engine
+    from wingopt.workflows.sweep.protocol import consistency_rows, consistency_tasks, protocol_tasks
+    from wingopt.workflows.sweep.records import RecordLog, read_records, write_atomic, write_json_atomic
+    from wingopt.workflows.sweep.run import run_records
 
     problem = load_problem(args.problem)
     if problem.kind != "membrane":
@@ -114,45 +115,57 @@ def run(args) -> int:
             raise InputError(f"methods: {m!r}: expected some of {', '.join(METHODS)}")
     if args.seeds < 1 or args.jobs < 1 or args.first_seed < 0:
         raise InputError("seeds and jobs: expected positive integers (first-seed: non-negative)")
-    table_seeds = range(args.first_seed, args.first_seed + args.seeds)
     truth = parse_mesh(args.truth_mesh)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    rec_path = _records_path(out)
-    done = _load_records(rec_path) if args.resume else []
-    if not args.resume:
-        rec_path.write_text("")
+    rec_path = out / "records.jsonl"
+    if args.resume and rec_path.exists():
+        old = read_records(rec_path)
+        if any("key" not in r for r in old):  # a pre-engine file: give its records their keys
+            lines = "".join(json.dumps(_old_record_key(r)) + "\n" for r in old)
+            write_atomic(rec_path, lambda p: p.write_text(lines))
+    records = RecordLog(rec_path, fresh=not args.resume)
     settings = MHESettings(load_space=args.load_space, **state_prior_settings(args.state_prior))
     t0 = time.perf_counter()
 
+    # One task list: the table's runs (with the oracle), the sign study's not already in the table,
+    # and the consistency study's; shared truths and models are computed once for all of them.
+    table_runs, sign_runs = _runs(args, loads, noises, methods)
+    table_tasks, shared = protocol_tasks(problem, table_runs, settings, truth, not args.no_oracle)
+    sign_tasks, shared2 = protocol_tasks(problem, sign_runs, settings, truth, False)
+    cons_tasks, shared3 = consistency_tasks(problem, settings=settings, truth_nodes=truth)
+    cache = out / "consistency.json"
+    cons_rows = json.loads(cache.read_text()) if args.resume and cache.exists() else None
+    if not args.consistency or cons_rows is not None:
+        cons_tasks = []
+    table_keys = {t.key for t in table_tasks}
+    tasks = table_tasks + [t for t in sign_tasks if t.key not in table_keys] + cons_tasks
+    shared_all = {s.key: s for s in shared + shared2 + shared3}
+
     def save(rec):
-        with open(rec_path, "a") as fh:
-            fh.write(json.dumps(to_jsonable(rec.as_dict())) + "\n")
-        print(
-            f"  {rec.load} {100 * rec.noise:g}% seed {rec.seed} {rec.method}: load {rec.load_error:.4f} "
-            f"deflection {rec.deflection_error:.2e} lift {rec.lift_error:.4f} ({rec.wall_s:.1f} s)",
-            flush=True,
-        )
+        if rec.get("status") != "ok":
+            print(f"  FAILED {rec['key']}: {rec.get('error')}", flush=True)
+        elif "study" not in rec.get("params", {}):
+            print(
+                f"  {rec['load']} {100 * rec['noise']:g}% seed {rec['seed']} {rec['method']}: load "
+                f"{rec['load_error']:.4f} deflection {rec['deflection_error']:.2e} lift {rec['lift_error']:.4f} "
+                f"({rec['wall_s']:.1f} s)",
+                flush=True,
+            )
+
+    args.serial = args.serial or (args.jobs <= 1 and not args.scheduler)
+    with Engine(engine_settings(args, args.jobs, retries=2)) as engine:
+        if engine.client is not None or args.jobs > 1:
+            announce(engine)
+        by, _ = run_records(tasks, list(shared_all.values()), records, engine, save, "compare")
+    failed = [by[t.key] for t in tasks if by.get(t.key, {}).get("status") != "ok"]
+    if failed:
+        raise SolverError(f"{len(failed)} tasks failed, e.g. {failed[0]['key']}: {failed[0].get('error')}")
 
     sections = []
     report: dict = {"problem": problem.name, "truth_mesh": list(truth), "mesh": list(problem.nodes)}
     if args.table == "yes":
-        table_done = [r for r in done if r.method in methods and r.noise in noises and r.seed in table_seeds]
-        recs = comparison_study(
-            problem,
-            loads,
-            noises,
-            table_seeds,
-            methods,
-            settings,
-            truth,
-            oracle=not args.no_oracle,
-            done=table_done,
-            jobs=args.jobs,
-            on_record=save,
-        )
-        recs = [r for r in recs if r.seed in table_seeds and r.method in methods]
-        summ = summarize(recs)
+        summ = summarize([record_from_dict(by[t.key]) for t in table_tasks])
         report["comparison"] = summ
         sections.append(
             comparison_markdown(
@@ -165,30 +178,24 @@ def run(args) -> int:
         )
         sections.append(_oracle_markdown(summ))
     if args.sign_seeds:
-        sign_done = [r for r in done if r.method == "mhe" and r.noise == 0.05]
-        recs = sign_and_band_study(
-            problem, loads, 0.05, range(args.sign_seeds), settings, truth, sign_done, args.jobs, save
-        )
-        recs = [r for r in recs if r.seed < args.sign_seeds and r.noise == 0.05 and r.method == "mhe"]
-        rows = summarize(recs)
+        rows = summarize([record_from_dict(by[t.key]) for t in sign_tasks])
         report["sign_and_band"] = rows
         sections.append(_sign_markdown(rows, args.sign_seeds))
     if args.consistency:
-        cache = out / "consistency.json"
-        if args.resume and cache.exists():
-            rows = json.loads(cache.read_text())
-        else:
-            rows = consistency_study(problem, mhe_settings=settings, truth_nodes=truth, progress=print)
-            cache.write_text(json.dumps(to_jsonable(rows), indent=2) + "\n")
-        report["consistency"] = rows
-        sections.append(_consistency_markdown(rows))
+        if cons_rows is None:
+            cons_rows = consistency_rows([by[t.key] for t in cons_tasks])
+            write_json_atomic(cache, cons_rows)
+        for row in cons_rows:
+            print(f"consistency, {row['sensors']} sensors: load error {row['load_error_mean']:.4f}")
+        report["consistency"] = cons_rows
+        sections.append(_consistency_markdown(cons_rows))
     report["wall_s"] = time.perf_counter() - t0
     sections.insert(0, _checklist_markdown(report))
     text = "\n\n".join(s for s in sections if s) + "\n"
-    (out / "summary.json").write_text(json.dumps(to_jsonable(report), indent=2) + "\n")
-    (out / "comparison.md").write_text(text)
+    write_json_atomic(out / "summary.json", report)
+    write_atomic(out / "comparison.md", lambda p: p.write_text(text))
     if args.doc:
-        Path(args.doc).write_text(_doc_header(args) + text)
+        write_atomic(Path(args.doc), lambda p: p.write_text(_doc_header(args) + text))
     if args.json:
         print(json.dumps(to_jsonable(report)))
     else:

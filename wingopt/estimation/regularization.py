@@ -26,7 +26,7 @@ The rules:
   (``docs/estimation.md``).
 
 Nothing here looks at the true load: the oracle lambda of the studies is computed separately
-in :mod:`wingopt.estimation.studies`.
+in :mod:`wingopt.workflows.studies`.
 """
 
 from __future__ import annotations

@@ -55,7 +55,7 @@ class IdentifyRun:
 
     def load_field(self, k: int = -1):
         """Callable ``(x, y) -> P`` of the estimated pressure at sample ``k`` (Pa)."""
-        from wingopt.estimation.studies import load_field
+        from wingopt.workflows.studies import load_field
 
         return load_field(self.result, self.model, k)
 
@@ -67,7 +67,7 @@ class IdentifyRun:
         """Final relative L2 errors against the truth (simulated records only)."""
         if self.case is None:
             return {}
-        from wingopt.estimation.studies import evaluate
+        from wingopt.workflows.studies import evaluate
 
         rec = evaluate(self.case, self.result, self.model, self.method)
         return {
@@ -163,7 +163,7 @@ def identify(
         The estimate, the measurements, the truth (simulated records) and the summary.
     """
     from wingopt.estimation.csv_data import read_measurements
-    from wingopt.estimation.studies import CleanCases, protocol_sign, run_method
+    from wingopt.workflows.studies import CleanCases, protocol_sign, run_method
 
     if getattr(problem, "kind", None) != "membrane":
         raise InputError(f"problem: identify needs a membrane problem, got kind {getattr(problem, 'kind', None)!r}")

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
@@ -45,7 +44,8 @@ __all__ = [
     "oracle_lambda",
     "protocol_sign",
     "sign_and_band_study",
-    "Task",
+    "noisy_case",
+    "record_from_dict",
     "ORACLE_OFFSETS",
 ]
 
@@ -96,15 +96,23 @@ class CleanCases:
 
     def case(self, load: str, noise: float, seed: int) -> SimulatedCase:
         """The protocol case with noise ``noise`` (fraction) and ``seed``; same as ``simulate_case``."""
-        c = self.clean(load)
-        noisy, sigma = add_noise(c.trajectory.outputs, noise, seed)
-        meas = dataclasses.replace(
-            c.measurements,
-            values=noisy,
-            noise_std=sigma if self.tell_noise else None,
-            source=c.measurements.source.replace("0% seed None", f"{100 * noise:g}% seed {seed}"),
-        )
-        return dataclasses.replace(c, measurements=meas, noise_fraction=noise, seed=seed)
+        return noisy_case(self.clean(load), noise, seed, self.tell_noise)
+
+
+def noisy_case(clean: SimulatedCase, noise: float, seed: int, tell_noise: bool = False) -> SimulatedCase:
+    """``clean`` (a noise-free protocol run) with noise ``noise`` (fraction) drawn from ``seed``.
+
+    Same as :func:`~wingopt.workflows.protocols.simulate_case` with that noise; ``tell_noise``
+    passes the noise level on to the estimators (by default they estimate it from the data).
+    """
+    noisy, sigma = add_noise(clean.trajectory.outputs, noise, seed)
+    meas = dataclasses.replace(
+        clean.measurements,
+        values=noisy,
+        noise_std=sigma if tell_noise else None,
+        source=clean.measurements.source.replace("0% seed None", f"{100 * noise:g}% seed {seed}"),
+    )
+    return dataclasses.replace(clean, measurements=meas, noise_fraction=noise, seed=seed)
 
 
 def load_field(result: IdentificationResult, model: MembraneModel, k: int = -1) -> Callable:
@@ -221,52 +229,13 @@ def oracle_lambda(
     return lam, err, errs
 
 
-@dataclass(frozen=True)
-class Task:
-    """One (case, seed, method) run of a study."""
-
-    load: str
-    noise: float
-    seed: int
-    method: str
-
-    @property
-    def key(self) -> tuple:
-        return (self.load, round(self.noise, 6), self.seed, self.method)
-
-
-_WORKER: dict = {}
-
-
-def _worker_init(problem, truth_nodes, settings, oracle, oracle_offsets):
-    _WORKER.update(
-        model=MembraneModel.from_problem(problem),
-        clean=CleanCases(problem, truth_nodes),
-        settings=settings,
-        oracle=oracle,
-        offsets=oracle_offsets,
-        problem=problem,
-    )
-
-
-def _run_task(task: Task) -> CaseRecord:
-    w = _WORKER
-    model, settings = w["model"], w["settings"]
-    case = w["clean"].case(task.load, task.noise, task.seed)
-    sign = protocol_sign(task.load) * abs(w["problem"].identification.initial_load)
-    t0 = time.perf_counter()
-    res = run_method(task.method, model, case.measurements, settings, initial_load=sign, truth=case)
-    rec = evaluate(case, res, model, task.method)
-    rec.wall_s = time.perf_counter() - t0
-    if task.method == "mhe" and w["oracle"]:
-        grid = [rec.regularization * 10.0**e for e in w["offsets"]]
-        lam, err, _ = oracle_lambda(case, model, settings, grid, initial_load=sign)
-        rec.oracle_regularization, rec.oracle_load_error = lam, min(err, rec.load_error)
-    return rec
-
-
 ORACLE_OFFSETS = tuple(np.arange(-2.0, 1.01, 0.5))
 """Oracle grid, in decades around the data-chosen lambda (the rule sits half a decade below the knee)."""
+
+
+def record_from_dict(d: dict) -> CaseRecord:
+    """A :class:`CaseRecord` from a record dict (extra fields, e.g. the engine's, ignored)."""
+    return CaseRecord(**{k: d.get(k) for k in CaseRecord.__dataclass_fields__})
 
 
 def comparison_study(
@@ -282,41 +251,29 @@ def comparison_study(
     done: Sequence[CaseRecord] = (),
     jobs: int = 1,
     on_record: Callable[[CaseRecord], None] | None = None,
+    engine=None,
 ) -> list[CaseRecord]:
     """Run every method on every case; one :class:`CaseRecord` per (case, seed, method).
 
     ``oracle``: also find the MHE's oracle lambda per case (least final load error given the
     truth) on ``chosen lambda * 10**oracle_offsets``, to report the gap to the data-only rule.
     ``done``: records already computed (skipped, returned with the new ones). ``jobs``: worker
-    processes. ``on_record`` is called with every new record as it arrives (progress, saving).
+    processes of a local dask cluster (1: this process), or ``engine``: an entered
+    :class:`~wingopt.workflows.sweep.engine.Engine`. ``on_record`` is called with every new record.
     """
-    settings = mhe_settings or MHESettings()
-    have = {(r.load, round(r.noise, 6), r.seed, r.method) for r in done}
-    tasks = [
-        Task(load, float(noise), int(seed), method)
-        for load in loads
-        for noise in noises
-        for seed in seeds
-        for method in methods
-        if (load, round(float(noise), 6), int(seed), method) not in have
-    ]
-    records = list(done)
-    init = (problem, truth_nodes, settings, oracle, tuple(oracle_offsets))
-    if jobs <= 1 or len(tasks) <= 1:
-        _worker_init(*init)
-        results = map(_run_task, tasks)
-        for rec in results:
-            records.append(rec)
-            if on_record:
-                on_record(rec)
-        return records
-    import multiprocessing as mp
+    from wingopt.workflows.sweep.protocol import protocol_tasks, run_tasks, task_key
 
-    with mp.get_context("fork").Pool(jobs, initializer=_worker_init, initargs=init) as pool:
-        for rec in pool.imap_unordered(_run_task, tasks):
-            records.append(rec)
-            if on_record:
-                on_record(rec)
+    settings = mhe_settings or MHESettings()
+    runs = [(ld, float(nz), int(sd), m) for ld in loads for nz in noises for sd in seeds for m in methods]
+    tasks, shared = protocol_tasks(problem, runs, settings, truth_nodes, oracle, oracle_offsets)
+    have = {task_key({"load": r.load, "noise": r.noise, "seed": r.seed, "method": r.method}) for r in done}
+    tasks = [t for t in tasks if t.key not in have]
+    records = list(done)
+    for d in run_tasks(tasks, shared, jobs, engine):
+        rec = record_from_dict(d)
+        records.append(rec)
+        if on_record:
+            on_record(rec)
     return records
 
 
@@ -410,32 +367,17 @@ def consistency_study(
     mhe_settings: MHESettings | None = None,
     truth_nodes: tuple[int, int] | None = TRUTH_NODES,
     progress: Callable[[str], None] | None = None,
+    jobs: int = 1,
+    engine=None,
 ) -> list[dict]:
     """Consistency load with the problem's 4 sensors (``None``) and sensor grids; error per layout."""
-    out = []
-    sign = protocol_sign("consistency") * abs(problem.identification.initial_load)
-    for layout in layouts:
-        prob = problem if layout is None else problem.with_sensors(sensor_grid(problem, *layout))
-        model = MembraneModel.from_problem(prob)
-        clean = CleanCases(prob, truth_nodes)
-        errs, lifts = [], []
-        t0 = time.perf_counter()
-        for seed in seeds:
-            case = clean.case("consistency", noise, seed)
-            res = mhe_identify(model, case.measurements, mhe_settings, initial_load=sign)
-            rec = evaluate(case, res, model, "mhe")
-            errs.append(rec.load_error)
-            lifts.append(rec.lift_error)
-        row = {
-            "sensors": len(prob.sensors),
-            "layout": "problem" if layout is None else f"{layout[0]}x{layout[1]}",
-            "load_error_mean": float(np.mean(errs)),
-            "load_error_min": float(np.min(errs)),
-            "load_error_max": float(np.max(errs)),
-            "lift_error_mean": float(np.mean(lifts)),
-            "seconds": time.perf_counter() - t0,
-        }
-        out.append(row)
+    from wingopt.workflows.sweep.protocol import consistency_rows, consistency_tasks, run_tasks
+
+    tasks, shared = consistency_tasks(problem, layouts, noise, seeds, mhe_settings, truth_nodes)
+    records = run_tasks(tasks, shared, jobs, engine)
+    order = {t.key: i for i, t in enumerate(tasks)}
+    rows = consistency_rows(sorted(records, key=lambda r: order[r["key"]]))
+    for row in rows:
         if progress:
             progress(f"consistency, {row['sensors']} sensors: load error {row['load_error_mean']:.4f}")
-    return out
+    return rows

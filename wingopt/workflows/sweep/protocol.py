@@ -1,0 +1,205 @@
+"""Task functions and task lists of the simulated-protocol studies (comparison, sign, consistency).
+
+Each (case, noise seed, method) run is one :class:`~wingopt.workflows.sweep.engine.SweepTask`.
+Its shared inputs are the noise-free truth of its load (simulated once on the fine mesh) and
+the estimator's model (built once per problem); the task adds the seeded noise, runs the method
+and returns the :class:`~wingopt.workflows.studies.CaseRecord` as a dict, with the run's
+parameters under ``"params"``. The task key is the canonical JSON of those parameters, so
+the records of an earlier run (also of the pre-engine ``compare``) are matched by ``--resume``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+
+from wingopt.errors import SolverError
+from wingopt.estimation.mhe import MHESettings
+from wingopt.membrane import MembraneModel
+from wingopt.problem.membrane import MembraneProblem
+from wingopt.workflows.protocols import SimulatedCase, simulate_case
+from wingopt.workflows.studies import (
+    ORACLE_OFFSETS,
+    evaluate,
+    noisy_case,
+    oracle_lambda,
+    protocol_sign,
+    run_method,
+    sensor_grid,
+)
+from wingopt.workflows.sweep.engine import Engine, EngineSettings, SharedInput, SweepTask
+
+__all__ = [
+    "task_key",
+    "digest",
+    "ORACLE_OFFSETS",
+    "simulate_clean",
+    "build_model",
+    "protocol_record",
+    "task_cost",
+    "protocol_tasks",
+    "consistency_tasks",
+    "CONSISTENCY_LAYOUTS",
+    "run_tasks",
+    "consistency_rows",
+]
+
+METHOD_COST = {"mhe": 1.0, "jekf-tuned": 65.0, "jekf-seed": 88.0, "jekf": 88.0}
+"""Relative CPU times on the protocol (25x13 estimator, 1 s; benchmarks/bench_sweep.py): the JEKFs dominate."""
+
+ORACLE_COST = 3.1
+"""An MHE run with its oracle-lambda search, relative to one without (measured as above)."""
+
+CONSISTENCY_LAYOUTS = (None, (4, 3), (8, 4))
+"""The consistency study's sensor layouts: the problem's own, then 4x3 and 8x4 grids."""
+
+
+def task_key(params: dict) -> str:
+    """The key of a run: canonical JSON of its parameters."""
+    return json.dumps(params, sort_keys=True, separators=(",", ":"))
+
+
+def digest(*parts) -> str:
+    return hashlib.sha1(repr(parts).encode()).hexdigest()[:16]
+
+
+def simulate_clean(problem: MembraneProblem, load: str, truth_nodes, t_end: float) -> SimulatedCase:
+    """The noise-free protocol run of ``load`` (truth on ``truth_nodes``): a shared input."""
+    return simulate_case(problem, load, 0.0, None, truth_nodes, t_end)
+
+
+def build_model(problem: MembraneProblem) -> MembraneModel:
+    """The estimator's model of ``problem``: a shared input."""
+    return MembraneModel.from_problem(problem)
+
+
+def protocol_record(
+    clean: SimulatedCase,
+    model: MembraneModel,
+    params: dict,
+    method: str,
+    noise: float,
+    seed: int,
+    settings: MHESettings | None,
+    initial_load: float,
+    oracle_offsets: Sequence[float] | None = None,
+) -> dict:
+    """One run: seeded noise on the clean truth, ``method`` on it, final metrics (and the oracle lambda)."""
+    case = noisy_case(clean, noise, seed)
+    t0 = time.perf_counter()
+    res = run_method(method, model, case.measurements, settings, initial_load=initial_load, truth=case)
+    rec = evaluate(case, res, model, method)
+    rec.wall_s = time.perf_counter() - t0
+    if method == "mhe" and oracle_offsets:
+        grid = [rec.regularization * 10.0**e for e in oracle_offsets]
+        lam, err, _ = oracle_lambda(case, model, settings or MHESettings(), grid, initial_load=initial_load)
+        rec.oracle_regularization, rec.oracle_load_error = lam, min(err, rec.load_error)
+    return {**rec.as_dict(), "params": params}
+
+
+def task_cost(method: str, model_nodes, t_end: float, oracle: bool) -> float:
+    """Relative run-time estimate (the engine submits the largest first)."""
+    c = METHOD_COST.get(method, 1.0) * (ORACLE_COST if oracle and method == "mhe" else 1.0)
+    return c * t_end * model_nodes[0] * model_nodes[1]
+
+
+def protocol_tasks(
+    problem: MembraneProblem,
+    runs: Iterable[tuple[str, float, int, str]],
+    settings: MHESettings | None = None,
+    truth_nodes: tuple[int, int] | None = (49, 25),
+    oracle: bool = False,
+    oracle_offsets: Sequence[float] = ORACLE_OFFSETS,
+    t_end: float = 1.0,
+) -> tuple[list[SweepTask], list[SharedInput]]:
+    """Tasks of ``runs`` = (load, noise fraction, seed, method) on ``problem`` (the comparison preset).
+
+    Keys are ``task_key({"load", "noise", "seed", "method"})``: the fields of every comparison record.
+    """
+    model_key = f"model/{digest(problem)}"
+    shared = {model_key: SharedInput(model_key, build_model, (problem,))}
+    tasks: dict[str, SweepTask] = {}
+    for load, noise, seed, method in runs:
+        params = {"load": load, "noise": float(noise), "seed": int(seed), "method": method}
+        truth_key = f"truth/{digest(problem, load, truth_nodes, t_end)}/{load}"
+        shared.setdefault(truth_key, SharedInput(truth_key, simulate_clean, (problem, load, truth_nodes, t_end)))
+        sign = protocol_sign(load) * abs(problem.identification.initial_load)
+        offsets = tuple(oracle_offsets) if oracle and method == "mhe" else None
+        args = (params, method, float(noise), int(seed), settings, sign, offsets)
+        key = task_key(params)
+        cost = task_cost(method, problem.nodes, t_end, bool(offsets))
+        tasks.setdefault(key, SweepTask(key, protocol_record, args, (truth_key, model_key), cost))
+    return list(tasks.values()), list(shared.values())
+
+
+def consistency_tasks(
+    problem: MembraneProblem,
+    layouts: Sequence[tuple[int, int] | None] = CONSISTENCY_LAYOUTS,
+    noise: float = 0.01,
+    seeds: Iterable[int] = range(3),
+    settings: MHESettings | None = None,
+    truth_nodes: tuple[int, int] | None = (49, 25),
+    t_end: float = 1.0,
+) -> tuple[list[SweepTask], list[SharedInput]]:
+    """The consistency study: the rectangle load, the MHE, one task per (sensor layout, seed)."""
+    tasks, shared = [], {}
+    sign = protocol_sign("consistency") * abs(problem.identification.initial_load)
+    seeds = list(seeds)
+    for layout in layouts:
+        prob = problem if layout is None else problem.with_sensors(sensor_grid(problem, *layout))
+        name = "problem" if layout is None else f"{layout[0]}x{layout[1]}"
+        model_key, truth_key = f"model/{digest(prob)}", f"truth/{digest(prob, truth_nodes, t_end)}/consistency"
+        shared[model_key] = SharedInput(model_key, build_model, (prob,))
+        shared[truth_key] = SharedInput(truth_key, simulate_clean, (prob, "consistency", truth_nodes, t_end))
+        for seed in seeds:
+            params = {"study": "consistency", "layout": name, "sensors": len(prob.sensors)}
+            params.update(noise=noise, seed=seed)
+            args = (params, "mhe", float(noise), int(seed), settings, sign, None)
+            cost = task_cost("mhe", prob.nodes, t_end, False)
+            tasks.append(SweepTask(task_key(params), protocol_record, args, (truth_key, model_key), cost))
+    return tasks, list(shared.values())
+
+
+def run_tasks(tasks, shared, jobs: int, engine) -> list[dict]:
+    """Run study tasks on ``engine`` (an entered :class:`~wingopt.workflows.sweep.engine.Engine`), or
+    in this process (``jobs <= 1``), or on a local cluster of ``jobs`` workers; failures raise."""
+
+    def collect(eng):
+        out = []
+        for rec in eng.run(tasks, shared):
+            if rec["status"] != "ok":
+                raise SolverError(f"study task {rec['key']}: {rec['error']}")
+            out.append(rec)
+        return out
+
+    if engine is not None:
+        return collect(engine)
+    mode = "serial" if jobs <= 1 or len(tasks) <= 1 else "local"
+    with Engine(EngineSettings(mode=mode, workers=jobs, progress=False, dashboard=False)) as eng:
+        return collect(eng)
+
+
+def consistency_rows(records: Sequence[dict]) -> list[dict]:
+    """Per sensor layout (in order of appearance): mean and spread of the load error over seeds."""
+    groups: dict[str, list[dict]] = {}
+    for r in records:
+        groups.setdefault(r["params"]["layout"], []).append(r)
+    out = []
+    for layout, rs in groups.items():
+        errs = [r["load_error"] for r in rs]
+        out.append(
+            {
+                "sensors": int(rs[0]["params"]["sensors"]),
+                "layout": layout,
+                "load_error_mean": float(np.mean(errs)),
+                "load_error_min": float(np.min(errs)),
+                "load_error_max": float(np.max(errs)),
+                "lift_error_mean": float(np.mean([r["lift_error"] for r in rs])),
+                "seconds": float(sum(r.get("duration_s", r["wall_s"]) for r in rs)),
+            }
+        )
+    return out
