@@ -8,7 +8,8 @@ numbers, with the JEKF columns, are produced by ``wingopt compare membrane --sig
 import numpy as np
 import pytest
 
-from wingopt.workflows.studies import comparison_study, consistency_study, sign_and_band_study, summarize
+from wingopt.workflows.comparison import comparison_study, consistency_study, sign_and_band_study
+from wingopt.workflows.studies import summarize
 
 pytestmark = pytest.mark.slow
 
