@@ -22,7 +22,7 @@ What makes it fast (issue 16, measured on the plate with the 20-mode weight, r =
   step's shifts (the closed loop moves by ~1e-3), so no projection eigenproblem is solved again.
 * **A sketch instead of the stacked factor** for the projection shifts (:class:`_Sketch`).
 
-13x61: 1600 -> 240 sparse LUs, CPU time 61.5 s -> 5.2 s, gain 7.4e-6 from the previous
+13x61: 1600 -> 240 sparse LUs, CPU time 61.5 s -> 5.3 s, gain 7.5e-6 from the previous
 solution; 7x31: 2.6e-5 from the dense reference (``benchmarks/bench_lqr_large.py``).
 """
 
@@ -37,6 +37,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from wingopt.dynamics import SecondOrderSystem
 from wingopt.errors import InputError, SolverError
 
 __all__ = ["NKADIResult", "care_nk_adi"]
@@ -327,11 +328,7 @@ def care_nk_adi(
         s = Phi.shape[1]
     else:
         s = int(min(shift_modes, n - 1))
-        _, Phi = (
-            spla.eigsh(Ksp, k=s, M=Msp, sigma=0.0, which="LM", v0=np.ones(n))
-            if n > 200
-            else sla.eigh(Ksp.toarray(), Msp.toarray(), subset_by_index=(0, s - 1))
-        )
+        _, Phi = SecondOrderSystem(Msp, Dsp, Ksp, b).undamped_modes(s)
     U0 = np.zeros((2 * n, 2 * s))
     U0[:n, :s] = Phi
     U0[n:, s:] = Phi

@@ -32,7 +32,7 @@ iteration stalls at a Riccati residual of 6e-8 after 40 steps on 7x31 and NK-ADI
 Accuracy and time (issue 16; ``benchmarks/bench_lqr_large.py``, CPU time on one core). The ADI
 stops once a 40-shift cycle changes the gain by less than ``2 tol`` (the residual levels off long
 before its 1e-9 target on the lightly damped plate), and later Newton steps replay the first
-step's shifts: 13x61 in 5.2 s CPU (was 61.5 s), 7.4e-6 from the previous solution (800 shifts per
+step's shifts: 13x61 in 5.3 s CPU (was 61.5 s), 7.5e-6 from the previous solution (800 shifts per
 Newton step); 7x31 2.6e-5 from :func:`dense_care_gain`. 25x121: see ``docs/control_lqr.md``.
 """
 
@@ -43,7 +43,6 @@ import time
 import weakref
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
@@ -85,21 +84,16 @@ def _modes(model, count: int) -> tuple[np.ndarray, np.ndarray]:
 
     The weight, the initial gain and the first shift space all need the lowest modes of the same
     pencil; they were solved three times per gain (25x121: three sparse shift-invert solves). The
-    largest set computed so far is kept per model and sliced. Dense when that is cheaper.
-    (Issue 10: to be pointed at the modes service of ``wingopt.dynamics`` when it exists.)
+    largest set computed so far is kept per model and sliced; the solve itself (dense/sparse policy)
+    is ``SecondOrderSystem.undamped_modes``, which :func:`~wingopt.control.riccati_adi.care_nk_adi`
+    also uses when called without modes. (Issue 10: point this at the modes service of
+    ``wingopt.dynamics`` when it exists.)
     """
-    n = model.n
-    count = int(min(count, n))
+    count = int(min(count, model.n))
     have = _MODES.get(model)
-    if have is not None and have[0].size >= count:
-        return have[0][:count], have[1][:, :count]
-    if n <= 1200 or count > n // 3:
-        lam, Phi = sla.eigh(model.stiffness.toarray(), model.mass.toarray(), subset_by_index=(0, count - 1))
-        omega = np.sqrt(np.clip(lam, 0.0, None))
-    else:
-        omega, Phi = model.system.undamped_modes(count)
-    _MODES[model] = (omega, Phi)
-    return omega, Phi
+    if have is None or have[0].size < count:
+        have = _MODES[model] = model.system.undamped_modes(count)
+    return have[0][:count], have[1][:, :count]
 
 
 def plate_weight(
