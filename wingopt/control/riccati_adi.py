@@ -23,7 +23,8 @@ What makes it fast (issue 16, measured on the plate with the 20-mode weight, r =
 * **A sketch instead of the stacked factor** for the projection shifts (:class:`_Sketch`).
 
 13x61: 1600 -> 240 sparse LUs, CPU time 61.5 s -> 5.3 s, gain 7.5e-6 from the previous
-solution; 7x31: 2.6e-5 from the dense reference (``benchmarks/bench_lqr_large.py``).
+solution; 25x121: 2400 -> 240 LUs, 426.6 s -> 31.0 s CPU under the same load, 7.8e-6 from the
+previous solution; 7x31: 2.6e-5 from the dense reference (``benchmarks/bench_lqr_large.py``).
 """
 
 from __future__ import annotations
