@@ -115,9 +115,44 @@ def test_twist_tip_corners_opposite_and_near_one_centimetre(runs13):
     assert tip[0] == pytest.approx(0.01, rel=0.25)
 
 
-@pytest.mark.xfail(strict=True, reason="the M-norm best fit of the Table 5.1 twist puts the tip at ±0.78–0.80 cm")
+@pytest.mark.xfail(
+    strict=True,
+    reason="not met by any reading of the seed's law: its equilibrium is the weighted static best fit of the "
+    "Table 5.1 twist, whose tips stay at or below 0.80 cm (M or L2 weight, any r; see the test below)",
+)
 def test_twist_tip_corners_within_20_percent(runs13):
     assert runs13["twist"].final_tip[0] == pytest.approx(0.01, rel=0.2)
+
+
+def test_twist_tips_of_every_reading_of_the_seed_law(model13):
+    """Issue 16: why the seed's twist outcome (±4 kV on PZ8/PZ9, tips ±1 cm) is not reproduced.
+
+    The plate has the authority: ±4 kV on PZ8/PZ9 alone puts the tips at ±1.01 cm. But the closed
+    loop of the seed's law (any Q = blockdiag(alpha W, beta W), R, and the exact feedforward of eq.
+    5.22) settles on the R-regularised W-weighted static best fit (tested above and in
+    ``test_continuous_feedforward_settles_on_the_regularised_static_fit``), and that fit of the
+    Table 5.1 twist uses PZ2/PZ3 against PZ8/PZ9 to lift the mid-span, which keeps the tips low.
+    Measured on 13x61 for the mass weight (the spec's reading) and the L2 Gram matrix (the seed's
+    literal ``∫ phi_i phi_j``) over r = 1e-18..1e-12: tips at most 0.801 cm (the 20 % bound is
+    0.800 cm, touched only at r = 1e-15, where PZ8/PZ9 carry 2.6 kV and the camber needs 6.5 kV on PZ1)
+    and PZ8/PZ9 at most 2.9 kV.
+    """
+    from wingopt.control.tracking import static_fields
+
+    G = static_fields(model13)
+    u = np.zeros(9)
+    u[7], u[8] = 4000.0, -4000.0
+    assert abs(model13.tip_corners(G @ u)[0]) == pytest.approx(0.0101, abs=2e-4)
+    zd = model13.target("twist")
+    tips, pz89 = [], []
+    for W in (model13.mass, model13.gram):
+        H, g = G.T @ (W @ G), G.T @ (W @ zd)
+        for r in 10.0 ** np.arange(-18, -11):
+            uf = np.linalg.solve(H + r * np.eye(9), g)
+            tips.append(model13.tip_corners(G @ uf)[0])
+            pz89.append(abs(uf[7]))
+    assert max(tips) == pytest.approx(0.00801, abs=5e-5)  # below the 0.8 cm the 20 % check needs
+    assert max(pz89) < 2950  # the seed: about 4 kV
 
 
 def test_bending_tip_within_20_percent(runs13):

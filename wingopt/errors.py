@@ -14,6 +14,7 @@ __all__ = [
     "DataFileError",
     "OutputError",
     "SolverError",
+    "RiccatiAccuracyError",
 ]
 
 
@@ -61,3 +62,11 @@ class SolverError(WingoptError, RuntimeError):
         if hint:
             msg += f"; {hint}"
         super().__init__(msg)
+
+
+class RiccatiAccuracyError(SolverError):
+    """A Riccati solution whose residual stays above the tolerance after rescaling and refinement.
+
+    Raised instead of returning a gain that is silently wrong (e.g. ``scipy.linalg.solve_continuous_are``
+    on a lightly damped full-order plate with a small input weight).
+    """

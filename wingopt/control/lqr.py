@@ -2,23 +2,32 @@
 
 ``lqr(sys, Q, R) -> K, S, E`` with ``u = -K x``, ``S`` the Riccati solution and ``E`` the
 closed-loop eigenvalues; ``dlqr`` for discrete systems; ``lqe``/``dlqe`` for the steady-state
-Kalman gain (by duality).
+Kalman gain (by duality). Every solution is checked by its relative residual and refined by
+Newton's method when the Schur solver's is poor (:mod:`wingopt.control.riccati_refine`); a
+solution that stays poor raises :class:`~wingopt.errors.RiccatiAccuracyError`.
 """
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import scipy.linalg as sla
 
+from wingopt.control.riccati_refine import RTOL, care_residual, dare_residual, refine_care, refine_dare
 from wingopt.dynamics import StateSpace
 from wingopt.errors import InputError, SolverError
 
 __all__ = ["lqr", "dlqr", "lqe", "dlqe"]
 
+log = logging.getLogger(__name__)
+
 
 def _system_matrices(args) -> tuple[np.ndarray, np.ndarray, tuple]:
     if isinstance(args[0], StateSpace):
         return args[0].A, args[0].B, args[1:]
+    if hasattr(args[0], "A") and hasattr(args[0], "B"):  # e.g. a python-control StateSpace
+        return np.asarray(args[0].A, float), np.asarray(args[0].B, float), args[1:]
     return np.asarray(args[0], float), np.asarray(args[1], float), args[2:]
 
 
@@ -37,7 +46,7 @@ def _weights(A, B, rest):
     return Q, R, N
 
 
-def lqr(*args):
+def lqr(*args, rtol: float = RTOL):
     """Continuous-time LQR: minimise ``∫ x'Qx + u'Ru + 2x'Nu`` for ``x' = Ax + Bu``.
 
     Parameters
@@ -47,6 +56,8 @@ def lqr(*args):
         State and input weights (``R`` positive definite).
     N : ndarray, optional
         Cross weight.
+    rtol : float
+        Largest accepted relative Riccati residual (see :mod:`wingopt.control.riccati_refine`).
 
     Returns
     -------
@@ -56,25 +67,50 @@ def lqr(*args):
         Stabilising solution of the algebraic Riccati equation.
     E : ndarray (n,)
         Closed-loop eigenvalues of ``A - B K``.
+
+    Raises
+    ------
+    RiccatiAccuracyError
+        The residual stays above ``rtol`` after Newton refinement in modal coordinates.
     """
     A, B, rest = _system_matrices(args)
     Q, R, N = _weights(A, B, rest)
+    # Standard form without the cross term: A1 = A - B R^-1 N', Q1 = Q - N R^-1 N' (same S).
+    RiN = np.linalg.solve(R, N.T)
+    A1, Q1 = A - B @ RiN, Q - N @ RiN
+    Q1 = 0.5 * (Q1 + Q1.T)
     try:
         S = sla.solve_continuous_are(A, B, Q, R, s=N)
     except (np.linalg.LinAlgError, ValueError) as exc:
-        raise SolverError("scipy.solve_continuous_are", str(exc), "check stabilisability of (A, B)") from None
-    K = np.linalg.solve(R, B.T @ S + N.T)
+        if np.linalg.eigvals(A1).real.max() >= 0:
+            raise SolverError("scipy.solve_continuous_are", str(exc), "check stabilisability of (A, B)") from None
+        S = np.zeros_like(A)  # stable open loop: Newton from K = 0 below
+    res = care_residual(A1, B, Q1, R, S)
+    if res <= rtol:
+        K = np.linalg.solve(R, B.T @ S + N.T)
+    else:
+        log.info("lqr: Schur solution's relative residual %.1e > %.0e, refining by Newton–Kleinman", res, rtol)
+        S, K1 = refine_care(A1, B, Q1, R, np.linalg.solve(R, B.T @ S), rtol)
+        K = K1 + RiN
     return K, S, np.linalg.eigvals(A - B @ K)
 
 
-def dlqr(*args):
-    """Discrete-time LQR for ``x_{k+1} = A x_k + B u_k``; same returns as :func:`lqr`."""
+def dlqr(*args, rtol: float = RTOL):
+    """Discrete-time LQR for ``x_{k+1} = A x_k + B u_k``; same returns and checks as :func:`lqr`."""
     A, B, rest = _system_matrices(args)
     Q, R, N = _weights(A, B, rest)
     try:
         S = sla.solve_discrete_are(A, B, Q, R, s=N)
     except (np.linalg.LinAlgError, ValueError) as exc:
         raise SolverError("scipy.solve_discrete_are", str(exc), "check stabilisability of (A, B)") from None
+    RiN = np.linalg.solve(R, N.T)
+    A1, Q1 = A - B @ RiN, Q - N @ RiN
+    Q1 = 0.5 * (Q1 + Q1.T)
+    res = dare_residual(A1, B, Q1, R, S)
+    if not res <= rtol:
+        log.info("dlqr: Schur solution's relative residual %.1e > %.0e, refining by Hewer's iteration", res, rtol)
+        K1 = np.linalg.solve(R + B.T @ S @ B, B.T @ S @ A1)
+        S = refine_dare(A1, B, Q1, R, K1, rtol)
     K = np.linalg.solve(R + B.T @ S @ B, B.T @ S @ A + N.T)
     return K, S, np.linalg.eigvals(A - B @ K)
 

@@ -35,6 +35,13 @@ steady state depends on ``r`` only through the regularised fit above, so ``r`` w
 9x9 problem: it is the largest value for which the bending tip reaches within 2 % of -10 cm and
 the twist is carried by PZ8/PZ9 (opposite signs, the largest voltages). See ``docs/control_lqr.md``
 for the table over ``r`` and the outcomes.
+
+The seed's twist outcome (±4 kV on PZ8/PZ9, tips at ±1 cm) is not reproduced, and no reading of
+this law can (issue 16): since the loop settles on the weighted static best fit, only the position
+weight and ``R`` matter, and the fit of the Table 5.1 twist keeps the tips at or below 0.80 cm for
+the mass weight and the seed's literal L2 weight ``∫ phi_i phi_j`` at every ``r`` (0.83 cm for an
+identity weight on the coefficients), with PZ8/PZ9 at or below 3 kV; the evidence is in the docs and in
+``tests/test_control_tracking.py::test_twist_tips_of_every_reading_of_the_seed_law``.
 """
 
 from __future__ import annotations
