@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import logging
 import time
-import weakref
 
 import numpy as np
 import scipy.sparse as sp
@@ -76,24 +75,14 @@ def gain_relative_error(K: np.ndarray, K_ref: np.ndarray) -> float:
     return float(np.linalg.norm(K - K_ref) / np.linalg.norm(K_ref))
 
 
-_MODES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
 def _modes(model, count: int) -> tuple[np.ndarray, np.ndarray]:
-    """Lowest ``count`` undamped modes (rad/s, M-orthonormal shapes): the one mode solve of this module.
+    """Lowest ``count`` undamped modes (rad/s, M-orthonormal shapes) from the model's mode cache.
 
     The weight, the initial gain and the first shift space all need the lowest modes of the same
-    pencil; they were solved three times per gain (25x121: three sparse shift-invert solves). The
-    largest set computed so far is kept per model and sliced; the solve itself (dense/sparse policy)
-    is ``SecondOrderSystem.undamped_modes``, which :func:`~wingopt.control.riccati_adi.care_nk_adi`
-    also uses when called without modes. (Issue 10: point this at the modes service of
-    ``wingopt.dynamics`` when it exists.)
+    pencil; :meth:`~wingopt.dynamics.SecondOrderSystem.undamped_modes` solves them once per model
+    (one dense/sparse policy, :mod:`wingopt.dynamics.modes`) and serves every later request.
     """
-    count = int(min(count, model.n))
-    have = _MODES.get(model)
-    if have is None or have[0].size < count:
-        have = _MODES[model] = model.system.undamped_modes(count)
-    return have[0][:count], have[1][:, :count]
+    return model.system.undamped_modes(int(min(count, model.n)))
 
 
 def plate_weight(
@@ -286,7 +275,7 @@ def functional_gains(model, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     control law has mesh-independent fields.
     """
     n = model.n
-    kb = spla.splu(sp.csc_matrix(model.stiffness)).solve(np.ascontiguousarray(K[:, :n].T))
+    kb = model.system.static_solve(K[:, :n].T)
     kv = spla.splu(sp.csc_matrix(model.mass)).solve(np.ascontiguousarray(K[:, n:].T))
     return kb, kv
 

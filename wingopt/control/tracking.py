@@ -52,8 +52,6 @@ import weakref
 from dataclasses import dataclass, field, fields
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from wingopt.control.closed_loop import DEFAULT_PERIOD, check_limits
 from wingopt.control.kalman import EstimatorModel, KalmanSettings, SteadyStateKalman
@@ -144,14 +142,9 @@ def steady_state(model, target: np.ndarray, r: float = R_DEFAULT, alpha: float =
     return u, G @ u
 
 
-_STATIC: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
 def static_fields(model) -> np.ndarray:
-    """``K^-1 b`` (n, 9): the static field of one volt on each patch (cached per model)."""
-    if model not in _STATIC:
-        _STATIC[model] = spla.splu(sp.csc_matrix(model.stiffness)).solve(model.actuation)
-    return _STATIC[model]
+    """``K^-1 b`` (n, 9): the static field of one volt on each patch (the model's cached fields)."""
+    return model.system.static_fields()
 
 
 def discrete_feedforward(F, G, K, P, S, x_d, g=None) -> np.ndarray:
