@@ -361,7 +361,7 @@ class MovingHorizonEstimator:
         if sigma is None and ident.noise_std is not None:
             sigma, source = ident.noise_std, "problem file"
         if sigma is None:
-            sigma, source = estimate_noise_std(y), "estimated from the data"
+            sigma, source = estimate_noise_std(y, names=meas.sensor_names), "estimated from the data"
         sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (y.shape[1],)).copy()
         if not np.all(np.isfinite(sigma) & (sigma > 0)):
             raise InputError(f"noise_std = {sigma.tolist()}: expected positive values")

@@ -171,7 +171,7 @@ def choose_lambda(
     return float(lam), info
 
 
-def estimate_noise_std(values: np.ndarray, tail: float = 0.6) -> np.ndarray:
+def estimate_noise_std(values: np.ndarray, tail: float = 0.6, names=None) -> np.ndarray:
     """Per-sensor noise standard deviation from the data alone.
 
     Uses the last ``tail`` fraction of the record (after the start-up transient) and the second
@@ -189,7 +189,8 @@ def estimate_noise_std(values: np.ndarray, tail: float = 0.6) -> np.ndarray:
         d = d[np.isfinite(d)]
         if d.size < 10:
             raise InputError(
-                f"sensor {i + 1}: fewer than 10 usable samples to estimate the noise level; give noise_std"
+                f"sensor {names[i] if names else i + 1}: fewer than 10 usable samples to estimate the noise level; "
+                "give noise_std or a longer record"
             )
         med = np.median(d)
         mad = 1.4826 * np.median(np.abs(d - med))

@@ -249,6 +249,16 @@ def _worker_init(problem, truth_nodes, settings, oracle, oracle_offsets):
     )
 
 
+def _pool_worker_init(*init):
+    """Worker set-up with BLAS capped at one thread: ``jobs`` workers each running a threaded BLAS
+    oversubscribe the cores (measured up to 10x slower, docs/jekf.md). threadpoolctl applies the
+    cap after numpy is loaded (environment variables would be read too late in a forked worker)."""
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=1)
+    _worker_init(*init)
+
+
 def _run_task(task: Task) -> CaseRecord:
     w = _WORKER
     model, settings = w["model"], w["settings"]
@@ -312,7 +322,7 @@ def comparison_study(
         return records
     import multiprocessing as mp
 
-    with mp.get_context("fork").Pool(jobs, initializer=_worker_init, initargs=init) as pool:
+    with mp.get_context("fork").Pool(jobs, initializer=_pool_worker_init, initargs=init) as pool:
         for rec in pool.imap_unordered(_run_task, tasks):
             records.append(rec)
             if on_record:

@@ -74,6 +74,10 @@ def load_problem(problem: str | Path):
             data = tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise ProblemFileError(f"{path}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ProblemFileError(f"{path}: not a UTF-8 text file (byte {exc.start}): TOML files are UTF-8") from None
+    except RecursionError:
+        raise ProblemFileError(f"{path}: nested too deeply to be a problem file") from None
     except OSError as exc:
         raise ProblemFileError(f"{path}: cannot read: {exc.strerror}") from None
     return parse_problem(data, str(path), path.stem)

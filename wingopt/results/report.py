@@ -33,12 +33,13 @@ figcaption { font-size: 0.9em; color: #4a5568; }
 
 
 def figure_png(fig, dpi: int = 110) -> bytes:
-    """PNG bytes of a matplotlib figure (the figure is closed afterwards)."""
-    import matplotlib.pyplot as plt
-
+    """PNG bytes of a matplotlib figure (a pyplot-managed figure is closed afterwards)."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
+    if getattr(fig.canvas, "manager", None) is not None:  # made by pyplot: release it
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
     return buf.getvalue()
 
 
