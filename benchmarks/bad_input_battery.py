@@ -230,8 +230,13 @@ def cases() -> list[dict]:
         "dup sensor names": _membrane('name = "S2"', 'name = "S1"'),
         "no sensors": _sensors([]),
     }
-    for _name, text in tomls.items():
-        add(["identify", "{d}/p.toml", "--load", "L1", "--t-end", "0.1", *FAST, "--out", "{out}"], {"p.toml": text})
+    for name, text in tomls.items():
+        add(
+            ["identify", "{d}/p.toml", "--load", "L1", "--t-end", "0.1", *FAST, "--out", "{out}"],
+            {"p.toml": text},
+            toml=name,
+        )
+    add(["identify", "{d}/p.toml", "--load", "L1", "--out", "{out}"], {"p.toml": tomls["nodes 2000"]})
     add(["modes", "{d}/p.toml", "--mesh", "7x5"], {"p.toml": _sensors([])})
     add(["modes", "{d}"])
     plates = {

@@ -265,3 +265,23 @@ def test_no_runtime_warnings_on_stderr(tmp_path):
     proc = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, cwd=ROOT)
     assert proc.returncode == 0, proc.stderr
     assert "RuntimeWarning" not in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_report_shows_warnings():
+    from wingopt.demo import _warnings
+    from wingopt.results.report import Report
+
+    summary = {"identify": {"L1": {"mhe": {"warnings": ["sensors bunched: x"]}, "jekf": {"warnings": []}}}}
+    items = _warnings(summary)
+    assert items == [("identify L1 mhe", "sensors bunched: x")]
+    html = Report("t").warnings(items).render()
+    assert "Warnings (1)" in html and "sensors bunched: x" in html
+    assert "Warnings: none" in Report("t").warnings([]).render()
+
+
+def test_initial_load_nan_or_zero_is_refused(membrane, tmp_path, capsys):
+    argv = ["identify", "membrane", "--load", "L1", "--initial-load", "nan", "--out", str(tmp_path / "o")]
+    assert main(argv) == 2
+    assert "initial_load = nan: expected a non-zero pressure" in capsys.readouterr().err
+    with pytest.raises(InputError, match="initial_load = 0"):
+        wo.identify(membrane, load="L1", initial_load=0, **SHORT)

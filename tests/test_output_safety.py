@@ -184,3 +184,22 @@ def test_sigterm_at_a_random_moment_leaves_a_result_or_nothing(tmp_path):
     assert "Traceback" not in err
     assert _leftovers(tmp_path) == []
     assert not out.exists() or (out / MARKER).is_file()
+
+
+def test_signal_wrapped_by_a_c_extension_is_still_a_signal(monkeypatch, capsys):
+    """SIGTERM during a module's initialisation surfaces as ``ImportError: initialization failed``."""
+    import wingopt.cli.modes as modes
+    from wingopt.cli import Terminated
+
+    def wrapped(args):
+        try:
+            raise Terminated(signal.SIGTERM)
+        except Terminated as exc:
+            raise ImportError("initialization failed") from exc
+
+    monkeypatch.setattr(modes, "run", wrapped)
+    parser_func = modes.run
+    assert parser_func is wrapped
+    assert main(["modes", "membrane"]) == 143
+    err = capsys.readouterr().err
+    assert err == "wingopt modes: terminated by SIGTERM; nothing written\n"

@@ -87,7 +87,11 @@ class Terminated(BaseException):
         self.signum = signum
 
 
+_RECEIVED: list[int] = []  # signals the handler turned into exceptions during this run
+
+
 def _on_signal(signum, frame):
+    _RECEIVED.append(signum)
     # Later signals during the clean-up are ignored: a second Ctrl-C must not leave a half-removed
     # work directory behind.
     for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
@@ -121,6 +125,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_INPUT
     _configure_logging(args)
     name = f"wingopt {args.command}"
+    _RECEIVED.clear()
     old = _install_handlers()
     try:
         return int(args.func(args) or EXIT_OK)
@@ -136,13 +141,23 @@ def main(argv: list[str] | None = None) -> int:
     except Terminated as exc:
         print(f"{name}: terminated by {signal.Signals(exc.signum).name}; nothing written", file=sys.stderr)
         return 128 + exc.signum
-    except MemoryError:
-        print(f"{name}: error: out of memory; try a coarser --mesh or a shorter --t-end", file=sys.stderr)
-        return EXIT_INPUT
-    except OSError as exc:
-        where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
-        print(f"{name}: error: {exc.strerror or exc}{where}", file=sys.stderr)
-        return EXIT_INPUT
+    except Exception as exc:
+        # A signal that arrives inside a C extension (e.g. while a module initialises) comes back
+        # wrapped ("ImportError: initialization failed"); report it as the signal it was.
+        inner = exc.__cause__ or exc.__context__
+        if isinstance(inner, (Terminated, KeyboardInterrupt)) or _RECEIVED:
+            signum = inner.signum if isinstance(inner, Terminated) else (_RECEIVED or [signal.SIGINT])[0]
+            what = "interrupted (Ctrl-C)" if signum == signal.SIGINT else f"terminated by {signal.Signals(signum).name}"
+            print(f"{name}: {what}; nothing written", file=sys.stderr)
+            return 128 + signum
+        if isinstance(exc, MemoryError):
+            print(f"{name}: error: out of memory; try a coarser --mesh or a shorter --t-end", file=sys.stderr)
+            return EXIT_INPUT
+        if isinstance(exc, OSError):
+            where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+            print(f"{name}: error: {exc.strerror or exc}{where}", file=sys.stderr)
+            return EXIT_INPUT
+        raise
     finally:
         for s, h in old.items():
             signal.signal(s, h)

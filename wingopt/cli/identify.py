@@ -215,7 +215,7 @@ def run(args) -> int:
         method=args.method,
         truth_nodes=None if args.same_mesh else parse_mesh(args.truth_mesh),
         t_end=args.t_end,
-        nodes=parse_mesh(args.mesh) if args.mesh else None,
+        nodes=parse_mesh(args.mesh) if args.mesh is not None else None,
         initial_load=args.initial_load,
         noise_std=args.noise_std,
         mhe_settings=settings,

@@ -117,7 +117,7 @@ def run(args) -> int:
     if problem.kind != "plate":
         raise InputError(f"problem = {args.problem!r}: morph needs a plate problem, got kind {problem.kind!r}")
     load_factory(args.method)  # fail early (e.g. qp not installed) before building anything
-    nodes = parse_mesh(args.mesh) if args.mesh else None
+    nodes = parse_mesh(args.mesh) if args.mesh is not None else None
     from wingopt import resources
 
     limit = resources.parse_size(args.max_memory) if args.max_memory else None

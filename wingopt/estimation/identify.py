@@ -175,6 +175,10 @@ def identify(
     if not problem.sensors:
         raise InputError(f"problem {problem.name!r}: no [[sensors]]: identification needs stretch sensors")
     check_seed(seed)
+    if initial_load is not None and not (np.isfinite(initial_load) and initial_load != 0):
+        raise InputError(
+            f"initial_load = {initial_load!r}: expected a non-zero pressure (Pa); its sign fixes the load's"
+        )
     if (load is None) == (data is None):
         raise InputError("identify: give exactly one of load= (simulated protocol) or data= (measured CSV)")
     if nodes is not None:

@@ -76,6 +76,14 @@ class Report:
         self.parts.append("\n".join(out))
         return self
 
+    def warnings(self, items: Sequence[tuple[str, str]]) -> Report:
+        """The runs' warnings (``(run, warning)`` pairs), or a line saying there are none."""
+        if not items:
+            return self.paragraph("Warnings: none (every run's summary.json has an empty warnings list).", "ok")
+        lis = "".join(f"<li><b>{html.escape(run)}</b>: {html.escape(w)}</li>" for run, w in items)
+        self.parts.append(f'<div class="note bad"><p>Warnings ({len(items)}):</p><ul>{lis}</ul></div>')
+        return self
+
     def figure(self, png: bytes | Path, caption: str = "") -> Report:
         """Embed a PNG (bytes or a file path) as a data URI."""
         data = Path(png).read_bytes() if isinstance(png, (str, Path)) else png
