@@ -285,3 +285,10 @@ def test_initial_load_nan_or_zero_is_refused(membrane, tmp_path, capsys):
     assert "initial_load = nan: expected a non-zero pressure" in capsys.readouterr().err
     with pytest.raises(InputError, match="initial_load = 0"):
         wo.identify(membrane, load="L1", initial_load=0, **SHORT)
+
+
+def test_api_time_message_has_plain_numbers():
+    data = np.array([[0.002, 0.01, 0.01, 0.01, 0.01], [0.001, 0.01, 0.01, 0.01, 0.01]])
+    with pytest.raises(InputError) as err:
+        wo.identify("membrane", data=data)
+    assert "t[1] = 0.001 after 0.002" in str(err.value) and "np.float64" not in str(err.value)
