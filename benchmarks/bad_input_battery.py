@@ -189,8 +189,7 @@ def cases() -> list[dict]:
     )
     add(
         ["identify", "membrane", "--data", "{d}/x.csv", *FAST, "--out", "{out}"],
-        {"x.csv": _body(_scale(k_v=1e-2))},
-        TRUE_LIFT,
+        {"x.csv": _body(_scale(k_v=1e-2))},  # a valid record of a load ~10x smaller: no truth to compare
     )
     bin_files = {"binary": bytes(range(256)) * 10, "utf16": _rows(50).encode("utf-16")}
     for _name, data in bin_files.items():
