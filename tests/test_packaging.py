@@ -19,6 +19,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _run(cmd, **kw):
+    # Never with PYTHONPATH: a source checkout on the path (and its build metadata) would make pip
+    # think wingopt is installed already, and would shadow the installed wheel.
+    kw.setdefault("env", {k: v for k, v in os.environ.items() if k != "PYTHONPATH"})
     return subprocess.run(cmd, capture_output=True, text=True, timeout=600, **kw)
 
 
@@ -47,7 +50,20 @@ def test_wheel_installs_in_a_fresh_venv_and_runs_outside_the_repo(wheel, tmp_pat
     base = getattr(sys, "_base_executable", sys.executable)
     assert _run([base, "-m", "venv", "--without-pip", str(venv)]).returncode == 0
     py = venv / "bin" / "python"
-    proc = _run([sys.executable, "-m", "pip", "--python", str(py), "install", "--no-deps", "-q", str(wheel)])
+    proc = _run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "--python",
+            str(py),
+            "install",
+            "--no-deps",
+            "--ignore-installed",
+            "-q",
+            str(wheel),
+        ]
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     # Dependencies (numpy, scipy, cvxpy, ...) from this environment; a .pth adds the directory only
     # (the .pth files in it, e.g. an editable wingopt, are not executed).
