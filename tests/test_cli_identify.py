@@ -170,6 +170,7 @@ def test_bad_csv_is_one_line_exit_2_and_no_output(record, small_file, tmp_path, 
 def test_existing_output_survives_a_failed_run(record, small_file, tmp_path, capsys):
     out = tmp_path / "keep"
     out.mkdir()
+    (out / ".wingopt-result").write_text("")  # an earlier wingopt result: replaceable, kept on failure
     (out / "summary.json").write_text("{}")
     bad = tmp_path / "empty.csv"
     bad.write_text("")

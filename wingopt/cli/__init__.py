@@ -12,6 +12,7 @@ import argparse
 import importlib
 import logging
 import pkgutil
+import signal
 import sys
 
 from wingopt import __version__
@@ -78,22 +79,88 @@ def _configure_logging(args) -> None:
     logging.getLogger("wingopt").setLevel(level)
 
 
+class Terminated(BaseException):
+    """Raised by the SIGTERM/SIGHUP handler so that ``with`` blocks (the result writer) clean up."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+_RECEIVED: list[int] = []  # signals the handler turned into exceptions during this run
+
+
+def _on_signal(signum, frame):
+    _RECEIVED.append(signum)
+    # Later signals during the clean-up are ignored: a second Ctrl-C must not leave a half-removed
+    # work directory behind.
+    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(s, signal.SIG_IGN)
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
+    raise Terminated(signum)
+
+
+def _install_handlers() -> dict:
+    """Route SIGINT/SIGTERM/SIGHUP to exceptions; returns the previous handlers (main thread only)."""
+    old = {}
+    try:
+        for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            old[s] = signal.signal(s, _on_signal)
+    except ValueError:  # not the main thread (e.g. called from a worker thread): leave them
+        pass
+    return old
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``wingopt`` console script; returns the exit code."""
+    """Entry point of the ``wingopt`` console script; returns the exit code.
+
+    Exit codes: 0 ok, 2 bad input or unwritable output, 3 solver failure, 130 interrupted (SIGINT),
+    128 + N terminated by signal N (143 for SIGTERM). Each failure is one line on stderr.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_INPUT
     _configure_logging(args)
+    name = f"wingopt {args.command}"
+    _RECEIVED.clear()
+    old = _install_handlers()
     try:
         return int(args.func(args) or EXIT_OK)
     except InputError as exc:
-        print(f"wingopt {args.command}: error: {exc}", file=sys.stderr)
+        print(f"{name}: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
     except SolverError as exc:
-        print(f"wingopt {args.command}: solver failure: {exc}", file=sys.stderr)
+        print(f"{name}: solver failure: {exc}", file=sys.stderr)
         return EXIT_SOLVER
+    except KeyboardInterrupt:
+        print(f"{name}: interrupted (Ctrl-C); nothing written", file=sys.stderr)
+        return 128 + signal.SIGINT
+    except Terminated as exc:
+        print(f"{name}: terminated by {signal.Signals(exc.signum).name}; nothing written", file=sys.stderr)
+        return 128 + exc.signum
+    except Exception as exc:
+        # A signal that arrives inside a C extension (e.g. while a module initialises) comes back
+        # wrapped ("ImportError: initialization failed"); report it as the signal it was.
+        inner = exc.__cause__ or exc.__context__
+        if isinstance(inner, (Terminated, KeyboardInterrupt)) or _RECEIVED:
+            signum = inner.signum if isinstance(inner, Terminated) else (_RECEIVED or [signal.SIGINT])[0]
+            what = "interrupted (Ctrl-C)" if signum == signal.SIGINT else f"terminated by {signal.Signals(signum).name}"
+            print(f"{name}: {what}; nothing written", file=sys.stderr)
+            return 128 + signum
+        if isinstance(exc, MemoryError):
+            print(f"{name}: error: out of memory; try a coarser --mesh or a shorter --t-end", file=sys.stderr)
+            return EXIT_INPUT
+        if isinstance(exc, OSError):
+            where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+            print(f"{name}: error: {exc.strerror or exc}{where}", file=sys.stderr)
+            return EXIT_INPUT
+        raise
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
 
 
 if __name__ == "__main__":  # pragma: no cover

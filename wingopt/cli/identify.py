@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import sys
 
 import numpy as np
 
@@ -138,6 +139,9 @@ def register(sub, common) -> None:
     g.add_argument("--pressure-bounds", nargs=2, type=float, metavar=("MIN", "MAX"), help="Pa (cvxpy/ipopt)")
     p.add_argument("--initial-load", type=float, help="sign prior, Pa (default: the problem's initial_load)")
     p.add_argument("--noise-std", type=float, help="sensor noise std (default: estimated from the data)")
+    p.add_argument(
+        "--max-memory", metavar="SIZE", help="refuse runs estimated to need more (e.g. 4G; default: what is available)"
+    )
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--out", required=True, help="output directory (replaced atomically)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
@@ -200,6 +204,7 @@ def _settings(args):
 
 def run(args) -> int:
     from wingopt.problem import load_problem, parse_mesh
+    from wingopt.resources import parse_size
     from wingopt.results.writer import check_writable
     from wingopt.values import LambdaChoice
     from wingopt.workflows.identify import identify, write_identify_outputs
@@ -226,15 +231,24 @@ def run(args) -> int:
         method=args.method,
         truth_nodes=None if args.same_mesh else parse_mesh(args.truth_mesh),
         t_end=args.t_end,
-        nodes=parse_mesh(args.mesh) if args.mesh else None,
+        nodes=parse_mesh(args.mesh) if args.mesh is not None else None,
         initial_load=args.initial_load,
         noise_std=args.noise_std,
         mhe_settings=settings,
         lam=None if args.lam is None and args.lambda_rule is None else LambdaChoice(args.lam, args.lambda_rule),
+        max_memory=parse_size(args.max_memory) if args.max_memory else None,
     )
     write_identify_outputs(run_, args.out, plots=not args.no_plots)
-    _print(to_jsonable(run_.summary()), args)
+    summary = to_jsonable(run_.summary())
+    print_warnings("identify", summary)
+    _print(summary, args)
     return 0
+
+
+def print_warnings(command: str, summary: dict) -> None:
+    """The summary's ``warnings``, one line each on stderr."""
+    for w in summary.get("warnings", []):
+        print(f"wingopt {command}: warning: {w}", file=sys.stderr)
 
 
 def _print(summary: dict, args) -> None:

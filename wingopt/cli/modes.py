@@ -36,7 +36,7 @@ def register(sub, common) -> None:
 
 def run(args) -> int:
     problem = load_problem(args.problem)
-    nodes = parse_mesh(args.mesh) if args.mesh else None
+    nodes = parse_mesh(args.mesh) if args.mesh is not None else None
     if args.count < 1:
         raise InputError(f"count = {args.count}: expected a positive integer")
     t0 = time.perf_counter()

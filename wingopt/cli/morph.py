@@ -55,6 +55,9 @@ def register(sub, common) -> None:
     q.add_argument("--solver", help="QP backend: clarabel, osqp, ipopt or casadi-qp")
     q.add_argument("--mode", help="closed-loop (receding horizon) or open-loop")
     q.add_argument("--no-compare", action="store_true", help="qp: skip the saturated-LQR comparison run")
+    p.add_argument(
+        "--max-memory", metavar="SIZE", help="refuse runs estimated to need more (e.g. 4G; default: what is available)"
+    )
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--out", required=True, help="output directory (replaced atomically)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
@@ -94,6 +97,9 @@ def _check(args) -> None:
         raise InputError(f"t-end = {args.t_end!r}: expected a positive duration (s)")
     if not args.period > 0 or args.period > args.t_end:
         raise InputError(f"period = {args.period!r}: expected a positive control period no longer than --t-end")
+    from wingopt.validate import check_seed
+
+    check_seed(args.seed)
     if args.sensor_noise < 0:
         raise InputError(f"sensor-noise = {args.sensor_noise!r}: expected a standard deviation >= 0")
 
@@ -111,7 +117,11 @@ def run(args) -> int:
     if problem.kind != "plate":
         raise InputError(f"problem = {args.problem!r}: morph needs a plate problem, got kind {problem.kind!r}")
     load_factory(args.method)  # fail early (e.g. qp not installed) before building anything
-    nodes = parse_mesh(args.mesh) if args.mesh else None
+    nodes = parse_mesh(args.mesh) if args.mesh is not None else None
+    from wingopt import resources
+
+    limit = resources.parse_size(args.max_memory) if args.max_memory else None
+    resources.check(resources.estimate_morph(nodes or problem.nodes, args.t_end, args.period), limit)
     model = PlateModel.from_problem(problem, nodes)
     common = dict(
         t_end=args.t_end,
@@ -120,6 +130,7 @@ def run(args) -> int:
         period=args.period,
         plant=args.plant,
         model=model,
+        max_memory=limit,
     )
     result = morph(problem, args.shape, args.method, vmin=args.vmin, vmax=args.vmax, **common, **options)
     compare = None
@@ -127,6 +138,9 @@ def run(args) -> int:
         # The baseline, saturated at the QP's limits: the same limits, read off the QP's run.
         compare = morph(problem, args.shape, "lqr", vmin=result.vmin, vmax=result.vmax, **common)
     summary = write_morph_outputs(result, args.out, compare, plots=not args.no_plots)
+    from wingopt.cli.identify import print_warnings
+
+    print_warnings("morph", summary)
     _print(summary, args)
     return 0
 

@@ -17,7 +17,10 @@ units: percent or microstrain).
 from __future__ import annotations
 
 import csv
+import io
 import math
+import re
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -72,21 +75,93 @@ def _cell(text: str, line: int, column: str, path: str) -> float:
     return v
 
 
-def read_measurements(path: str | Path, sensor_names: tuple[str, ...] | list[str]) -> tuple[Measurements, CsvReport]:
-    """Read ``path`` into :class:`Measurements` for the given sensor names (problem order).
-
-    Returns the measurements (NaN where missing, on a uniform time grid) and a :class:`CsvReport`.
-    """
+def _read_text(path: str | Path) -> str:
     p = Path(path)
     name = str(path)
+    if p.is_dir():
+        raise DataFileError(f"data = {name!r}: is a directory, expected a CSV file")
     if not p.is_file():
         raise DataFileError(f"data = {name!r}: no such file")
     try:
-        text = p.read_text(encoding="utf-8-sig")
+        return p.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
         raise DataFileError(f"{name}: not a text (UTF-8) CSV file") from None
     except OSError as exc:
         raise DataFileError(f"{name}: cannot read: {exc.strerror}") from None
+
+
+_EMPTY_CELL = re.compile(r"(?<=,)[ \t]*(?=,|$)|^[ \t]*(?=,)", re.MULTILINE)
+
+
+def _fast_table(path, text: str, sensor_names) -> tuple[np.ndarray, np.ndarray, list[str]] | None:
+    """``np.loadtxt`` on a clean file: ``(t, values, ignored columns)``, or ``None`` to use the validator.
+
+    Applies only to plain numeric files (empty cells and ``nan`` allowed, no quotes): anything else,
+    and any file with a problem, goes through the line-by-line reader, which reports the line.
+    """
+    if '"' in text:
+        return None
+    start = 0
+    while True:  # header: the first line that is neither blank nor a comment
+        end = text.find("\n", start)
+        line = text[start : None if end < 0 else end]
+        if line.strip() and not line.lstrip().startswith("#"):
+            break
+        if end < 0:
+            return None
+        start = end + 1
+    header = [h.strip() for h in line.split(",")]
+    if "t" not in header or len(set(header)) != len(header) or any(n not in header for n in sensor_names):
+        return None
+    body = text[start + len(line) :]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "empty input" is handled below
+            if ",," in body or ",\n" in body or "\n," in body or body.startswith(",") or body.rstrip().endswith(","):
+                # empty cells are missing samples: spelled out for loadtxt (the regex only when needed)
+                src = io.StringIO(_EMPTY_CELL.sub("nan", body))
+                table = np.loadtxt(src, delimiter=",", comments="#", ndmin=2, dtype=float)
+            else:  # straight from the file: 3x less CPU than from a string buffer
+                skip = text.count("\n", 0, start) + 1
+                table = np.loadtxt(
+                    path, delimiter=",", comments="#", skiprows=skip, ndmin=2, dtype=float, encoding="utf-8-sig"
+                )
+    except ValueError:
+        return None
+    if table.shape[0] < 2 or table.shape[1] != len(header) or np.isinf(table).any():
+        return None
+    t = table[:, header.index("t")]
+    vals = table[:, [header.index(n) for n in sensor_names]]
+    if np.isnan(t).any():
+        return None
+    ignored = [h for h in header if h != "t" and h not in sensor_names]
+    return t, vals, ignored
+
+
+def read_measurements(path: str | Path, sensor_names: tuple[str, ...] | list[str]) -> tuple[Measurements, CsvReport]:
+    """Read ``path`` into :class:`Measurements` for the given sensor names (problem order).
+
+    Returns the measurements (NaN where missing, on a uniform time grid) and a :class:`CsvReport`.
+    A clean numeric file is parsed by ``np.loadtxt`` (1 h of 1 kHz, 4 sensors in ~3 s); a file with
+    any problem is re-read line by line so that the error names its line.
+    """
+    name = str(path)
+    text = _read_text(path)
+    fast = _fast_table(path, text, sensor_names)
+    if fast is not None:
+        t, vals, ignored = fast
+        try:
+            return _finish(name, t, vals, None, sensor_names, ignored)
+        except _NeedLines:
+            pass
+    return _read_slow(name, text, sensor_names)
+
+
+class _NeedLines(Exception):
+    """An error was found by the fast path: re-read line by line to name the line."""
+
+
+def _read_slow(name: str, text: str, sensor_names) -> tuple[Measurements, CsvReport]:
     lines = [(i + 1, ln) for i, ln in enumerate(text.splitlines()) if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise DataFileError(f"{name}: empty file: expected a header 't,{','.join(sensor_names)}' and data rows")
@@ -122,6 +197,17 @@ def read_measurements(path: str | Path, sensor_names: tuple[str, ...] | list[str
             raise DataFileError(f"{name}:{line}: t is missing: every row needs a time")
         for j, c in enumerate(cols):
             vals[r, j] = _cell(row[c], line, sensor_names[j], name)
+    return _finish(name, t, vals, [ln for ln, _ in lines[1:]], sensor_names, ignored)
+
+
+def _finish(name, t, vals, line_numbers, sensor_names, ignored) -> tuple[Measurements, CsvReport]:
+    """Checks on the arrays (``line_numbers[k]``: file line of data row ``k``; ``None``: fast path)."""
+
+    def line(k: int) -> int:
+        if line_numbers is None:
+            raise _NeedLines
+        return line_numbers[k]
+
     if t.size < 2:
         raise DataFileError(f"{name}: only {t.size} data row: expected a time series")
     steps = np.diff(t)
@@ -129,7 +215,7 @@ def read_measurements(path: str | Path, sensor_names: tuple[str, ...] | list[str
     if bad.size:
         k = bad[0] + 1
         raise DataFileError(
-            f"{name}:{lines[k + 1][0]}: t = {t[k]!r} after {t[k - 1]!r}: expected strictly increasing times"
+            f"{name}:{line(k)}: t = {float(t[k])!r} after {float(t[k - 1])!r}: expected strictly increasing times"
         )
     dt = float(np.median(steps))
     ratio = steps / dt
@@ -137,13 +223,20 @@ def read_measurements(path: str | Path, sensor_names: tuple[str, ...] | list[str
     if np.any(np.abs(ratio - whole) > _JITTER):
         k = int(np.argmax(np.abs(ratio - whole))) + 1
         raise DataFileError(
-            f"{name}:{lines[k + 1][0]}: irregular sampling (step {steps[k - 1]:.6g} s, typical {dt:.6g} s): "
+            f"{name}:{line(k)}: irregular sampling (step {steps[k - 1]:.6g} s, typical {dt:.6g} s): "
             "resample the data to a uniform time step"
         )
-    # Whole-multiple steps are gaps: fill them with missing rows so the time grid is uniform.
-    index = np.concatenate([[0], np.cumsum(whole.astype(int))])
+    # Whole-multiple steps are gaps: fill them with missing rows so the time grid is uniform. A step
+    # that is a huge multiple would allocate the whole gap: refuse it (e.g. ms and s mixed up).
+    index = np.concatenate([[0], np.cumsum(whole.astype(np.int64))])
     n = int(index[-1]) + 1
-    grid_vals = np.full((n, len(cols)), np.nan)
+    if n > 10 * t.size + 1000:
+        k = int(np.argmax(whole)) + 1
+        raise DataFileError(
+            f"{name}:{line(k)}: a gap of {int(whole[k - 1])} samples (step {steps[k - 1]:.6g} s, typical {dt:.6g} s): "
+            "expected a record with few missing samples"
+        )
+    grid_vals = np.full((n, len(sensor_names)), np.nan)
     grid_vals[index] = vals
     grid_t = t[0] + dt * np.arange(n)
     finite = grid_vals[np.isfinite(grid_vals)]

@@ -51,7 +51,7 @@ class Measurements:
             raise InputError(f"measurements: {v.shape[1]} columns for {len(self.sensor_names)} sensor names")
         if t.size and np.any(np.diff(t) <= 0):
             k = int(np.argmax(np.diff(t) <= 0)) + 1
-            raise InputError(f"t[{k}] = {t[k]!r}: expected strictly increasing times")
+            raise InputError(f"t[{k}] = {float(t[k])!r} after {float(t[k - 1])!r}: expected strictly increasing times")
         object.__setattr__(self, "t", t)
         object.__setattr__(self, "values", v)
 

@@ -97,7 +97,7 @@ def estimate_noise_std(
             name = names[i] if names is not None else f"column {i + 1}"
             raise InputError(
                 f"sensor {name}: {d.size} usable differences, need {_MIN_DIFFERENCES} to estimate its noise; "
-                "give noise_std"
+                "give noise_std or a longer record"
             )
         med = np.median(d)
         mad = 1.4826 * np.median(np.abs(d - med))

@@ -13,9 +13,14 @@ __all__ = ["plot_load_field", "plot_lift", "plot_errors"]
 
 
 def plot_load_field(
-    path: Path, X: np.ndarray, Y: np.ndarray, estimate: np.ndarray, truth: np.ndarray | None = None, title: str = ""
-) -> Path:
-    """Estimated pressure (and the true one beside it, same colour scale) on a grid, Pa."""
+    path: Path | None,
+    X: np.ndarray,
+    Y: np.ndarray,
+    estimate: np.ndarray,
+    truth: np.ndarray | None = None,
+    title: str = "",
+):
+    """Estimated pressure (and the true one beside it, same colour scale) on a grid, Pa; returns the figure."""
     plt = _pyplot()
     panels = [("estimate", estimate)] + ([("truth", truth)] if truth is not None else [])
     fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.2), squeeze=False)
@@ -33,27 +38,37 @@ def plot_load_field(
     return _save(fig, path)
 
 
+def _axes(ax):
+    """``(figure, axes, own)``: a new 6.4 x 3.4 in figure unless the caller gave ``ax``."""
+    if ax is not None:
+        return ax.figure, ax, False
+    fig, ax = _pyplot().subplots(figsize=(6.4, 3.4))
+    return fig, ax, True
+
+
 def _first_window(ax, first_window_s: float | None) -> None:
     if first_window_s:
         ax.axvspan(0, first_window_s, color="0.85", alpha=0.6, lw=0, label="first window (smoothed, known at its end)")
 
 
 def plot_lift(
-    path: Path,
+    path: Path | None,
     t: np.ndarray,
     lift: np.ndarray,
     std: np.ndarray | None = None,
     truth: float | None = None,
     title: str = "",
     first_window_s: float | None = None,
-) -> Path:
-    """Lift history with its 1-sigma band and the true lift when known.
+    ax=None,
+):
+    """Lift history with its 1-sigma band and the true lift when known; returns the figure.
+
+    ``ax``: draw into this axes (nothing is written; ``path`` may be ``None``).
 
     ``first_window_s`` shades the first MHE window, whose samples carry the first window's
     (smoothed) estimate, available only at the window's end.
     """
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6.4, 3.4))
+    fig, ax, own = _axes(ax)
     _first_window(ax, first_window_s)
     ax.plot(t, lift, color="C0", label="estimate")
     if std is not None and np.any(np.isfinite(std)):
@@ -66,20 +81,21 @@ def plot_lift(
     ax.legend(loc="best")
     if title:
         ax.set_title(title)
-    return _save(fig, path)
+    return _save(fig, path if own else None)
 
 
 def plot_errors(
-    path: Path,
+    path: Path | None,
     t: np.ndarray,
     load_error: np.ndarray,
     deflection_error: np.ndarray,
     title: str = "",
     first_window_s: float | None = None,
-) -> Path:
-    """Relative L2 errors of load and deflection over time (log scale)."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6.4, 3.4))
+    ax=None,
+):
+    """Relative L2 errors of load and deflection over time (log scale); returns the figure (``ax`` as
+    in :func:`plot_lift`)."""
+    fig, ax, own = _axes(ax)
     _first_window(ax, first_window_s)
     ax.semilogy(t, load_error, label="load")
     ax.semilogy(t, deflection_error, label="deflection")
@@ -89,4 +105,4 @@ def plot_errors(
     ax.legend(loc="best")
     if title:
         ax.set_title(title)
-    return _save(fig, path)
+    return _save(fig, path if own else None)

@@ -32,7 +32,7 @@ def _label(result) -> str:
     return f"{result.method}{lim}"
 
 
-def plot_voltages(path: Path, results: list) -> Path:
+def plot_voltages(path: Path | None, results: list):
     """Voltage history of every patch (one panel per run, shared voltage axis), limits dashed."""
     plt = _pyplot()
     fig, axes = plt.subplots(1, len(results), figsize=(6.2 * len(results), 3.8), sharey=True, squeeze=False)
@@ -52,10 +52,17 @@ def plot_voltages(path: Path, results: list) -> Path:
     return _save(fig, path)
 
 
-def plot_tip_corners(path: Path, results: list) -> Path:
-    """Tip corners ``w(0, 0)`` and ``w(W, 0)`` over time; targets dashed."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+def _axes(ax, figsize):
+    if ax is not None:
+        return ax.figure, ax, False
+    fig, ax = _pyplot().subplots(figsize=figsize)
+    return fig, ax, True
+
+
+def plot_tip_corners(path: Path | None, results: list, ax=None):
+    """Tip corners ``w(0, 0)`` and ``w(W, 0)`` over time; targets dashed. Returns the figure;
+    ``ax``: draw into this axes instead (nothing written)."""
+    fig, ax, own = _axes(ax, (6.4, 3.8))
     styles = ["-", "--", ":"]
     for i, res in enumerate(results):
         cl = res.closed_loop
@@ -69,13 +76,12 @@ def plot_tip_corners(path: Path, results: list) -> Path:
     ax.set_title(f"{results[0].shape}: tip corners (dash-dot: target)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="best")
-    return _save(fig, path)
+    return _save(fig, path if own else None)
 
 
-def plot_shape_error(path: Path, results: list) -> Path:
-    """``||z - z_d||_M / ||z_d||_M`` over time."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6.4, 3.4))
+def plot_shape_error(path: Path | None, results: list, ax=None):
+    """``||z - z_d||_M / ||z_d||_M`` over time; returns the figure (``ax`` as in :func:`plot_tip_corners`)."""
+    fig, ax, own = _axes(ax, (6.4, 3.4))
     for res in results:
         cl = res.closed_loop
         ax.plot(cl.t, cl.shape_error, label=f"{_label(res)}: final {cl.final_shape_error:.3f}")
@@ -88,10 +94,10 @@ def plot_shape_error(path: Path, results: list) -> Path:
     ax.set_title(f"{results[0].shape}: shape error")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    return _save(fig, path)
+    return _save(fig, path if own else None)
 
 
-def plot_surface(path: Path, results: list) -> Path:
+def plot_surface(path: Path | None, results: list):
     """Final surface of each run beside the target (mm, one colour scale) and a 3-D view."""
     plt = _pyplot()
     model = results[0].model
@@ -121,7 +127,7 @@ def plot_surface(path: Path, results: list) -> Path:
     return _save(fig, path, tight=False)  # tight_layout cannot place the 3-D axes and left colour bar
 
 
-def plot_strains(path: Path, result) -> Path:
+def plot_strains(path: Path | None, result):
     """Final ``eps_xx``, ``eps_yy``, ``gamma_xy`` on the top face of the substrate (Figs. 5.22–5.24)."""
     plt = _pyplot()
     model = result.model
@@ -143,7 +149,7 @@ def plot_strains(path: Path, result) -> Path:
     return _save(fig, path)
 
 
-def plot_snapshots(path: Path, result, times=(0.1, 0.25, 0.5, 1.0, 2.0)) -> Path:
+def plot_snapshots(path: Path | None, result, times=(0.1, 0.25, 0.5, 1.0, 2.0)):
     """Deflection along both edges (x = 0 and x = W) at a few instants (cf. Fig. 5.21)."""
     plt = _pyplot()
     model = result.model
@@ -173,17 +179,17 @@ def plot_morph(out: Path, result, compare_with=None) -> list[Path]:
     """All figures of a run into the directory ``out``; returns their paths."""
     out = Path(out)
     runs = [result] + ([compare_with] if compare_with is not None else [])
-    return [
-        plot_voltages(out / "voltages.png", runs),
-        plot_tip_corners(out / "tip_corners.png", runs),
-        plot_shape_error(out / "shape_error.png", runs),
-        plot_surface(out / "surface.png", runs),
-        plot_strains(out / "strains.png", result),
-        plot_snapshots(out / "snapshots.png", result),
-    ]
+    plot_voltages(out / "voltages.png", runs)
+    plot_tip_corners(out / "tip_corners.png", runs)
+    plot_shape_error(out / "shape_error.png", runs)
+    plot_surface(out / "surface.png", runs)
+    plot_strains(out / "strains.png", result)
+    plot_snapshots(out / "snapshots.png", result)
+    names = ("voltages", "tip_corners", "shape_error", "surface", "strains", "snapshots")
+    return [out / f"{n}.png" for n in names]
 
 
-def plot_functional_gains(path: Path, profiles: dict) -> Path:
+def plot_functional_gains(path: Path | None, profiles: dict):
     """Bending and velocity gains of PZ1/PZ4/PZ7 along ``x = W/2`` for several meshes (Figs. 5.12–5.17).
 
     ``profiles``: mesh label -> :func:`~wingopt.control.riccati_large.gain_profiles` output; meshes

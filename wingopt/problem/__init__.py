@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import re
 import tomllib
 from pathlib import Path
@@ -17,8 +18,21 @@ from wingopt.problem.membrane import MembraneProblem
 
 __all__ = ["load_problem", "parse_problem", "parse_mesh", "builtin_problems", "PROBLEMS_DIR", "MembraneProblem"]
 
-PROBLEMS_DIR = Path(__file__).resolve().parents[2] / "problems"
-"""Directory of the built-in problem files (the repository's ``problems/``)."""
+
+def _problems_dir() -> Path:
+    # Installed: the repository's top-level problems/ is the package ``wingopt._problems`` (setup.py
+    # maps it, nothing is copied). From a source checkout on PYTHONPATH that package does not exist.
+    try:
+        spec = importlib.util.find_spec("wingopt._problems")
+    except ImportError:
+        spec = None
+    if spec is not None and spec.submodule_search_locations:
+        return Path(next(iter(spec.submodule_search_locations)))
+    return Path(__file__).resolve().parents[2] / "problems"
+
+
+PROBLEMS_DIR = _problems_dir()
+"""Directory of the built-in problem files (``wingopt._problems`` installed; ``problems/`` in a checkout)."""
 
 # kind -> module with ``from_table(root: Table, name: str)``
 _KINDS = {"membrane": "wingopt.problem.membrane", "plate": "wingopt.problem.plate"}
@@ -32,6 +46,8 @@ def builtin_problems() -> list[str]:
 def _resolve(problem: str | Path) -> Path:
     path = Path(problem)
     if path.suffix == ".toml" or path.exists():
+        if path.is_dir():
+            raise ProblemFileError(f"problem = {str(problem)!r}: is a directory, expected a .toml file")
         if not path.is_file():
             raise ProblemFileError(f"problem = {str(problem)!r}: no such file")
         return path
@@ -58,6 +74,10 @@ def load_problem(problem: str | Path):
             data = tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise ProblemFileError(f"{path}: not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ProblemFileError(f"{path}: not a UTF-8 text file (byte {exc.start}): TOML files are UTF-8") from None
+    except RecursionError:
+        raise ProblemFileError(f"{path}: nested too deeply to be a problem file") from None
     except OSError as exc:
         raise ProblemFileError(f"{path}: cannot read: {exc.strerror}") from None
     return parse_problem(data, str(path), path.stem)

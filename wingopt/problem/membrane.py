@@ -101,7 +101,8 @@ def from_table(root: Table, name: str) -> MembraneProblem:
         youngs_modulus=mat.number("youngs_modulus", positive=True, unit="Pa"),
         poisson_ratio=mat.number("poisson_ratio", lo=-0.999, hi=0.5),
         thickness=mat.number("thickness", positive=True, unit="m"),
-        prestrain=mat.number("prestrain", positive=True),
+        # a pre-strain above 0.5 (50 %) is outside any linear membrane (the model keeps its tension constant)
+        prestrain=mat.number("prestrain", lo=1e-9, hi=0.5),
         kelvin_voigt=mat.number("kelvin_voigt", 1.0e-4, nonnegative=True, unit="s"),
         viscous=mat.number("viscous", 5.0, nonnegative=True, unit="Pa s/m"),
     )
@@ -112,10 +113,13 @@ def from_table(root: Table, name: str) -> MembraneProblem:
     mesh.finish()
 
     sensors = []
-    for t in root.tables("sensors"):
+    for t in root.tables("sensors", []):
+        sname = t.string("name")
+        if sname.strip().lower() in ("t", "time") or not sname.strip() or any(c in sname for c in ',"#\n'):
+            raise t.error("name", sname, "a sensor name other than 't'/'time' (the CSV time column), without , \" #")
         sensors.append(
             StretchSensorSpec(
-                name=t.string("name"),
+                name=sname,
                 rect=t.rect("rect", width, height),
                 gain=t.number("gain", 1.0, positive=True),
             )

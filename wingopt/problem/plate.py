@@ -284,14 +284,22 @@ def from_table(root: Table, name: str) -> PlateProblem:
 
     mats = root.table("materials")
     skin = _laminate(mats.table("plate"), (1.0e-4, 1.0e-4), (0.0,))
-    batten = _laminate(mats.table("batten"), (1.0e-4, 1.0e-4), (90.0, 90.0, 90.0, 90.0))
-    pt = mats.table("piezo")
-    pmat = _material(pt, (5.0e-5, 5.0e-5))
-    d33 = pt.number("d33", positive=True, unit="m/V")
-    pthick = pt.number("thickness", positive=True, unit="m")
-    spacing = pt.number("electrode_spacing", None, positive=True, unit="m")
-    pt.finish()
-    piezo = Piezo(pmat, d33, pthick, spacing)
+    # Batten and piezo materials are needed only by a plate that has battens / patches: without them
+    # the skin stands in (never used: no rectangle refers to it).
+    if mats.has("batten") or root.peek("battens"):
+        batten = _laminate(mats.table("batten"), (1.0e-4, 1.0e-4), (90.0, 90.0, 90.0, 90.0))
+    else:
+        batten = skin
+    if mats.has("piezo") or root.peek("patches"):
+        pt = mats.table("piezo")
+        pmat = _material(pt, (5.0e-5, 5.0e-5))
+        d33 = pt.number("d33", positive=True, unit="m/V")
+        pthick = pt.number("thickness", positive=True, unit="m")
+        spacing = pt.number("electrode_spacing", None, positive=True, unit="m")
+        pt.finish()
+        piezo = Piezo(pmat, d33, pthick, spacing)
+    else:
+        piezo = Piezo(skin.material, 1.0e-12, skin.thickness, None)
     mats.finish()
 
     battens = []

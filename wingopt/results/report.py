@@ -33,12 +33,13 @@ figcaption { font-size: 0.9em; color: #4a5568; }
 
 
 def figure_png(fig, dpi: int = 110) -> bytes:
-    """PNG bytes of a matplotlib figure (the figure is closed afterwards)."""
-    import matplotlib.pyplot as plt
-
+    """PNG bytes of a matplotlib figure (a pyplot-managed figure is closed afterwards)."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
-    plt.close(fig)
+    if getattr(fig.canvas, "manager", None) is not None:  # made by pyplot: release it
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
     return buf.getvalue()
 
 
@@ -73,6 +74,14 @@ class Report:
             out.append("<tr>" + "".join(f"<td>{_cell(v)}</td>" for v in r) + "</tr>")
         out.append("</table>")
         self.parts.append("\n".join(out))
+        return self
+
+    def warnings(self, items: Sequence[tuple[str, str]]) -> Report:
+        """The runs' warnings (``(run, warning)`` pairs), or a line saying there are none."""
+        if not items:
+            return self.paragraph("Warnings: none (every run's summary.json has an empty warnings list).", "ok")
+        lis = "".join(f"<li><b>{html.escape(run)}</b>: {html.escape(w)}</li>" for run, w in items)
+        self.parts.append(f'<div class="note bad"><p>Warnings ({len(items)}):</p><ul>{lis}</ul></div>')
         return self
 
     def figure(self, png: bytes | Path, caption: str = "") -> Report:

@@ -1,12 +1,17 @@
 """Atomic result directories: a run writes into a hidden sibling and swaps it in on success.
 
 A failed or interrupted run therefore never leaves a half-written output directory and never
-destroys the results of an earlier run at the same place.
+destroys the results of an earlier run at the same place. wingopt only ever replaces what it
+wrote itself: a result directory carries a marker file (:data:`MARKER`), and an existing
+directory without it (a project folder, the working directory) is refused, never emptied.
+Hidden work directories left by a killed run (``.NAME.tmp-PID-*``, ``.NAME.old-PID``) are
+removed by the next run at the same place once their process is gone.
 """
 
 from __future__ import annotations
 
 import csv
+import errno
 import json
 import logging
 import os
@@ -20,9 +25,12 @@ import numpy as np
 
 from wingopt.errors import OutputError
 
-__all__ = ["ResultDirectory", "write_json", "write_csv", "to_jsonable", "check_writable"]
+__all__ = ["ResultDirectory", "write_json", "write_csv", "to_jsonable", "check_writable", "MARKER"]
 
 log = logging.getLogger(__name__)
+
+MARKER = ".wingopt-result"
+"""File in every directory wingopt writes; only directories holding it are ever replaced."""
 
 
 def to_jsonable(obj: Any) -> Any:
@@ -52,28 +60,103 @@ def write_csv(path: Path, header: Sequence[str], rows: Iterable[Sequence[float]]
             w.writerow([f"{v:.10g}" if isinstance(v, (float, np.floating)) else v for v in r])
 
 
-def check_writable(target: Path) -> Path:
-    """Raise :class:`OutputError` unless ``target`` can become a new (or replaced) directory."""
+def _is_ours(path: Path) -> bool:
+    return (path / MARKER).is_file()
+
+
+def check_writable(target: str | os.PathLike) -> Path:
+    """Raise :class:`OutputError` unless ``target`` can become a new (or replaced) directory.
+
+    Allowed: a path that does not exist (its nearest existing parent must be a writable directory),
+    an empty directory, or a directory wingopt wrote (it holds :data:`MARKER`). Refused: a file, a
+    non-empty directory wingopt did not write, the working directory or one of its parents, and a
+    mount point.
+    """
+    given = str(target)
     target = Path(target).expanduser().resolve()
     if target.exists() and not target.is_dir():
-        raise OutputError(f"out = {str(target)!r}: exists and is not a directory")
+        raise OutputError(f"out = {given!r}: exists and is not a directory")
+    if target.is_dir():
+        cwd = Path.cwd().resolve()
+        if target == cwd or target in cwd.parents:
+            raise OutputError(f"out = {given!r}: is the working directory or contains it; give a new directory")
+        if os.path.ismount(target):
+            raise OutputError(f"out = {given!r}: is a mount point; give a new directory inside it")
+        try:
+            empty = not any(target.iterdir())
+        except OSError as exc:
+            raise OutputError(f"out = {given!r}: cannot read it ({exc.strerror})") from None
+        if not empty and not _is_ours(target):
+            raise OutputError(
+                f"out = {given!r}: exists and was not written by wingopt (no {MARKER} file); "
+                "give a new directory (wingopt never deletes files it did not write)"
+            )
     parent = target.parent
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
     if not parent.is_dir():
-        raise OutputError(f"out = {str(target)!r}: {str(parent)!r} is a file, not a directory")
+        raise OutputError(f"out = {given!r}: {str(parent)!r} is a file, not a directory")
     # Probe by creating a directory: permission bits alone say nothing for root or read-only mounts.
     try:
         os.rmdir(tempfile.mkdtemp(prefix=".wingopt-probe-", dir=parent))
     except OSError as exc:
-        raise OutputError(
-            f"out = {str(target)!r}: directory {str(parent)!r} is not writable ({exc.strerror})"
-        ) from None
+        raise OutputError(f"out = {given!r}: directory {str(parent)!r} is not writable ({exc.strerror})") from None
     return target
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True
+    return True
+
+
+def clean_stale(target: Path) -> list[Path]:
+    """Remove the hidden work directories of dead wingopt runs next to ``target``.
+
+    Only ``.NAME.tmp-PID-*`` / ``.NAME.old-PID`` siblings whose process is gone and that are empty or
+    hold :data:`MARKER` are removed: a foreign directory of a similar name is left alone.
+    """
+    removed = []
+    for pattern in (f".{target.name}.tmp-*", f".{target.name}.old-*"):
+        for p in target.parent.glob(pattern):
+            rest = p.name[len(target.name) + 6 :]
+            pid_text = rest.split("-", 1)[0]
+            if not p.is_dir() or p.is_symlink() or not pid_text.isdigit():
+                continue
+            if int(pid_text) == os.getpid() or _pid_alive(int(pid_text)):
+                continue
+            try:
+                if _is_ours(p) or not any(p.iterdir()):
+                    shutil.rmtree(p)
+                    removed.append(p)
+            except OSError:
+                pass
+    if removed:
+        log.info("removed %d stale work director%s of killed runs", len(removed), "y" if len(removed) == 1 else "ies")
+    return removed
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _os_error(target: Path, exc: OSError) -> OutputError:
+    what = "the disk is full" if exc.errno in (errno.ENOSPC, errno.EDQUOT) else exc.strerror or str(exc)
+    return OutputError(f"out = {str(target)!r}: cannot write ({what})")
 
 
 class ResultDirectory:
     """Context manager yielding a temporary directory that becomes ``target`` on success.
+
+    The directory gets :data:`MARKER` and the usual permissions (``0777 & ~umask``). An ``OSError``
+    while writing (disk full, quota, permissions) becomes an :class:`OutputError`; any exception,
+    ``KeyboardInterrupt`` and ``SystemExit`` included, removes the temporary directory.
 
     Examples
     --------
@@ -88,8 +171,12 @@ class ResultDirectory:
     def __enter__(self) -> Path:
         try:
             self.target.parent.mkdir(parents=True, exist_ok=True)
-            self._tmp = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.tmp-", dir=self.target.parent))
+            clean_stale(self.target)
+            self._tmp = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.tmp-{os.getpid()}-", dir=self.target.parent))
+            (self._tmp / MARKER).write_text("written by wingopt; this directory may be replaced by a later run\n")
         except OSError as exc:
+            if self._tmp is not None:
+                shutil.rmtree(self._tmp, ignore_errors=True)
             raise OutputError(f"out = {str(self.target)!r}: cannot create it ({exc.strerror})") from None
         return self._tmp
 
@@ -97,13 +184,28 @@ class ResultDirectory:
         assert self._tmp is not None
         if exc_type is not None:
             shutil.rmtree(self._tmp, ignore_errors=True)
+            if issubclass(exc_type, OSError) and not issubclass(exc_type, OutputError):
+                raise _os_error(self.target, exc) from None
             return False
         old = None
-        if self.target.exists():
-            old = self.target.parent / f".{self.target.name}.old-{os.getpid()}"
-            os.replace(self.target, old)
-        os.replace(self._tmp, self.target)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
+        try:
+            os.chmod(self._tmp, 0o777 & ~_umask())
+            if self.target.exists():
+                if any(self.target.iterdir()) and not _is_ours(self.target):  # appeared since check_writable
+                    raise OutputError(f"out = {str(self.target)!r}: created meanwhile by something else; kept")
+                old = self.target.parent / f".{self.target.name}.old-{os.getpid()}"
+                os.replace(self.target, old)
+            os.replace(self._tmp, self.target)
+        except BaseException as exc:
+            if old is not None and not self.target.exists():
+                os.replace(old, self.target)  # put the earlier results back
+                old = None
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            if isinstance(exc, OSError) and not isinstance(exc, OutputError):
+                raise _os_error(self.target, exc) from None
+            raise
+        finally:
+            if old is not None:
+                shutil.rmtree(old, ignore_errors=True)
         log.info("results written to %s", self.target)
         return False

@@ -206,6 +206,16 @@ def summary_table(summary: dict) -> str:
     return "\n".join(lines)
 
 
+def _warnings(summary: dict) -> list[tuple[str, str]]:
+    """``(run, warning)`` for every warning of every run in the demo's summary."""
+    out = []
+    for section in ("morph", "identify"):
+        for case, runs in summary.get(section, {}).items():
+            for method, s in runs.items():
+                out += [(f"{section} {case} {method}", w) for w in (s or {}).get("warnings", [])]
+    return out
+
+
 def _report(tmp: Path, summary: dict, cfg: DemoConfig) -> Report:
     rep = Report("wingopt demo: morphing a plate wing and identifying membrane loads")
     rep.paragraph(
@@ -253,6 +263,7 @@ def _report(tmp: Path, summary: dict, cfg: DemoConfig) -> Report:
                           ("errors.png", "error histories")):  # fmt: skip
             if (d / name).exists():
                 rep.figure(d / name, f"{load}, MHE: {cap}")
+    rep.warnings(_warnings(summary))
     rep.heading("3. The seed's reference tables")
     t62, t54 = summary["tables"]["membrane_6_2"], summary["tables"]["plate_5_4"]
     rep.table(

@@ -20,11 +20,14 @@ from typing import Any
 
 import numpy as np
 
+from wingopt import resources
 from wingopt.errors import InputError
+from wingopt.estimation import sanity
 from wingopt.estimation.data import IdentificationResult, Measurements
 from wingopt.estimation.lambda_rules import resolve as resolve_rule
 from wingopt.membrane import MembraneModel
 from wingopt.results import ResultDirectory, write_csv, write_json
+from wingopt.validate import check_seed
 from wingopt.values import LambdaChoice, NoiseLevel
 from wingopt.workflows.protocols import TRUTH_NODES, SimulatedCase
 
@@ -52,6 +55,7 @@ class IdentifyRun:
     case: SimulatedCase | None = None
     data_report: dict | None = None
     protocol: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
 
     def load_field(self, k: int = -1):
         """Callable ``(x, y) -> P`` of the estimated pressure at sample ``k`` (Pa)."""
@@ -93,6 +97,7 @@ class IdentifyRun:
             "regularization": res.regularization,
             "samples": int(self.measurements.count),
             "missing_samples": int(np.count_nonzero(self.measurements.missing)),
+            "warnings": list(self.warnings),
         }
         if self.data_report is not None:
             out["data"] = self.data_report
@@ -125,13 +130,14 @@ def identify(
     mhe_settings=None,
     jekf_modes: int | None = None,
     lam: LambdaChoice | None = None,
+    max_memory: float | None = None,
 ) -> IdentifyRun:
     """Estimate the load of a membrane problem from a simulated (``load``) or measured (``data``) record.
 
     Parameters
     ----------
-    problem : MembraneProblem
-        From :func:`wingopt.problem.load_problem`.
+    problem : MembraneProblem or str
+        From :func:`wingopt.problem.load_problem`, or a built-in name / path to load.
     load : {"L1", "L2", "L3", "consistency"}, optional
         Simulate the protocol with this load (truth on ``truth_nodes``; ``None`` there means the
         seed's same-mesh protocol).
@@ -139,8 +145,9 @@ def identify(
         Simulated noise as a FRACTION of each sensor's peak output (0.01 = 1 %).
     seed : int
         Noise seed.
-    data : path, optional
-        Measured CSV record instead of ``load`` (``t`` column + one column per sensor).
+    data : path, Measurements or array, optional
+        Measured record instead of ``load``: a CSV file (``t`` column + one column per sensor), a
+        :class:`Measurements`, or an array ``(N, 1 + p)`` of rows ``t, s_1 .. s_p`` (problem's sensor order).
     method : {"mhe", "jekf", "jekf-tuned"}
     nodes : (int, int), optional
         Estimator mesh (default: the problem's).
@@ -150,6 +157,9 @@ def identify(
         Sensor noise std, when known; default: estimated from the data. The protocol does not
         tell the estimators the simulated noise level.
     mhe_settings : MHESettings, optional
+    max_memory : float, optional
+        Refuse (``InputError``, before any work) a run estimated to need more bytes than this
+        (default: the memory the machine has available); see :mod:`wingopt.resources`.
     jekf_modes : int, optional
         Modes kept by the JEKF (default all: exact; 60 is ~20x faster with the same final errors
         to 4 digits on L1–L3, measured).
@@ -165,21 +175,37 @@ def identify(
     from wingopt.estimation.csv_data import read_measurements
     from wingopt.workflows.studies import CleanCases, protocol_sign, run_method
 
+    if isinstance(problem, (str, Path)):
+        from wingopt.problem import load_problem
+
+        problem = load_problem(problem)
     if getattr(problem, "kind", None) != "membrane":
         raise InputError(f"problem: identify needs a membrane problem, got kind {getattr(problem, 'kind', None)!r}")
     if method not in METHODS:
         raise InputError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
+    if not problem.sensors:
+        raise InputError(f"problem {problem.name!r}: no [[sensors]]: identification needs stretch sensors")
+    check_seed(seed)
+    if initial_load is not None and not (np.isfinite(initial_load) and initial_load != 0):
+        raise InputError(
+            f"initial_load = {initial_load!r}: expected a non-zero pressure (Pa); its sign fixes the load's"
+        )
     if (load is None) == (data is None):
         raise InputError("identify: give exactly one of load= (simulated protocol) or data= (measured CSV)")
     mhe_settings, extra = _lambda_options(method, lam, mhe_settings)
     if nodes is not None:
         problem = problem.with_mesh(nodes)
-    model = MembraneModel.from_problem(problem)
-    case, report, protocol = None, None, {}
+    samples, truth = 1, None
     if load is not None:
         noise = NoiseLevel(noise).fraction
         if not (np.isfinite(t_end) and t_end > 0):
             raise InputError(f"t_end = {t_end!r}: expected a positive duration (s)")
+        sanity.check_duration(t_end, problem.identification.dt)
+        samples, truth = int(round(t_end / problem.identification.dt)) + 1, truth_nodes or problem.nodes
+    resources.check(resources.estimate_identify(problem.nodes, samples, truth_nodes=truth, method=method), max_memory)
+    model = MembraneModel.from_problem(problem)
+    case, report, protocol = None, None, {}
+    if load is not None:
         case = CleanCases(problem, truth_nodes, t_end).case(load, noise, seed)
         meas = _with_noise_std(case.measurements, noise_std)
         if initial_load is None:
@@ -191,16 +217,39 @@ def identify(
             "truth_mesh": list(truth_nodes or problem.nodes),
             "protocol": "same-mesh (seed)" if truth_nodes is None else "fine-mesh truth",
         }
-    else:
+    elif isinstance(data, (str, Path)):
+        if Path(data).is_dir():
+            raise InputError(f"data = {str(data)!r}: is a directory, expected a CSV file")
         meas, csv_report = read_measurements(data, problem.sensor_names)
         report = csv_report.as_dict()
         meas = _with_noise_std(meas, noise_std)
+    else:
+        meas = _with_noise_std(sanity.as_measurements(data, problem.sensor_names), noise_std)
+    if load is None:
+        resources.check(resources.estimate_identify(problem.nodes, meas.count, method=method), max_memory)
+    prior = initial_load if initial_load is not None else problem.identification.initial_load
+    warnings = sanity.record_checks(model, meas, prior)
     name = {"mhe": "mhe", "jekf": "jekf-seed", "jekf-tuned": "jekf-tuned"}[method]
     if method != "mhe" and jekf_modes is not None:
         extra["modes"] = jekf_modes
     t0 = time.perf_counter()
     result = run_method(name, model, meas, mhe_settings, initial_load=initial_load, truth=case, **extra)
-    return IdentifyRun(problem, model, method, meas, result, time.perf_counter() - t0, case, report, protocol)
+    wall = time.perf_counter() - t0
+    warnings += sanity.fit_checks(model, meas, result, sanity_sigma(meas, result))
+    return IdentifyRun(problem, model, method, meas, result, wall, case, report, protocol, warnings)
+
+
+def sanity_sigma(meas: Measurements, result: IdentificationResult):
+    """The noise std the estimator used (or the data's own estimate) for the fit check."""
+    from wingopt.estimation.regularization import estimate_noise_std
+
+    sigma = result.info.get("noise_std", meas.noise_std)
+    if sigma is None:
+        try:
+            sigma = estimate_noise_std(meas.values, names=meas.sensor_names)
+        except InputError:
+            return None
+    return np.asarray(sigma, dtype=float)
 
 
 def _lambda_options(method: str, lam: LambdaChoice | None, mhe_settings):

@@ -104,6 +104,7 @@ class MorphResult:
     t_end: float = 2.0
     options: dict = field(default_factory=dict)
     extras: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
 
     def summary(self) -> dict:
         """The spec §7 summary (plus run settings and settling information)."""
@@ -138,6 +139,7 @@ class MorphResult:
             "controller_step_s_median": float(np.median(cl.step_seconds)) if cl.step_seconds.size else 0.0,
             "wall_s": self.wall_s,
             "options": dict(self.options),
+            "warnings": list(self.warnings),
         }
         out.update(self.extras)
         return out
@@ -157,6 +159,7 @@ def morph(
     period: float = DEFAULT_PERIOD,
     plant: str = "auto",
     model=None,
+    max_memory: float | None = None,
     **options,
 ) -> MorphResult:
     """Morph ``problem``'s plate into ``shape`` with ``method``, from rest, for ``t_end`` s.
@@ -182,6 +185,9 @@ def morph(
         Full-order plant (see :func:`~wingopt.control.closed_loop.make_plant`).
     model : PlateModel, optional
         A model already built for ``problem`` (and ``nodes``), to share between runs.
+    max_memory : float, optional
+        Refuse (``InputError``, before any work) a run estimated to need more bytes than this
+        (default: the memory available); see :mod:`wingopt.resources`.
     **options
         Passed to the method's factory (e.g. ``r`` for lqr; ``horizon, solver, mode`` for qp).
 
@@ -191,7 +197,9 @@ def morph(
         The closed-loop run, its target, limits and timing; :meth:`MorphResult.summary` is the
         spec §7 summary.
     """
+    from wingopt import resources
     from wingopt.plate import PlateModel
+    from wingopt.validate import check_seed
 
     t0 = time.perf_counter()
     if getattr(problem, "kind", None) != "plate":
@@ -202,9 +210,16 @@ def morph(
         raise InputError(f"shape = {shape!r}: expected one of {', '.join(SHAPES)}")
     if not (np.isfinite(t_end) and t_end > 0):
         raise InputError(f"t_end = {t_end!r}: expected a positive duration (s)")
+    check_seed(seed)
+    if not problem.patches:
+        raise InputError(f"problem {problem.name!r}: no [[patches]]: morphing needs piezo patch pairs as actuators")
     factory = load_factory(method)
     if model is None:
+        est = resources.estimate_morph(nodes or problem.nodes, t_end, period)
+        resources.check(est, max_memory)
         model = PlateModel.from_problem(problem, nodes)
+    else:
+        resources.check(resources.estimate_morph(model.problem.nodes, t_end, period), max_memory)
     limits = resolve_limits(problem, method, vmin, vmax, model.n_inputs)
     lo, hi = limits.scalar("lower"), limits.scalar("upper")
     target = model.target(shape)

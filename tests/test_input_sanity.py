@@ -1,0 +1,295 @@
+"""Input sanity (issue 12): confident wrong answers get a warning, impossible inputs a one-line refusal.
+
+Every identify and morph summary has a ``warnings`` list (empty when nothing is wrong), printed on
+stderr by the command line. Checked here, through the API and the command line: corner-bunched and
+duplicate sensors, percent stretches, data that do not fit the model, negated stretches, time in
+ms/µs/ns, a sensor named ``t``, ``seed = -1``, a plate without patches, non-UTF-8 and deeply nested
+TOML, ``t_end`` too short, ``data=`` as an array or ``Measurements``, a problem given by name,
+non-physical prestrain, a directory given as a file, optional schema sections.
+"""
+
+import dataclasses
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import wingopt as wo
+from wingopt.cli import main
+from wingopt.errors import InputError
+from wingopt.estimation.csv_data import read_measurements
+from wingopt.problem import PROBLEMS_DIR, load_problem
+from wingopt.problem.membrane import StretchSensorSpec
+
+ROOT = Path(__file__).resolve().parents[1]
+RECORD = ROOT / "examples" / "data" / "synthetic_tunnel_300Hz.csv"
+SHORT = dict(nodes=(13, 7), truth_nodes=(19, 10), t_end=0.3)
+CORNER = [(0.005, 0.02, 0.005, 0.015), (0.02, 0.035, 0.005, 0.015), (0.005, 0.02, 0.015, 0.025)]
+CORNER.append((0.02, 0.035, 0.015, 0.025))
+
+
+@pytest.fixture(scope="module")
+def membrane():
+    return load_problem("membrane")
+
+
+@pytest.fixture(scope="module")
+def record(membrane):
+    return read_measurements(RECORD, membrane.sensor_names)[0]
+
+
+def _rewrite(tmp_path, transform, name="x.csv"):
+    lines = RECORD.read_text().splitlines()
+    out = []
+    for ln in lines:
+        if ln.startswith("#") or ln.startswith("t,"):
+            out.append(ln)
+            continue
+        cells = ln.split(",")
+        out.append(",".join(transform(cells)))
+    path = tmp_path / name
+    path.write_text("\n".join(out) + "\n")
+    return path
+
+
+def _scale_time(k):
+    return lambda c: [f"{float(c[0]) * k:.9g}", *c[1:]]
+
+
+# -- warnings: the default layout and a clean record give none ---------------------------------------
+
+
+def test_clean_record_has_an_empty_warnings_list(membrane, tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(["identify", "membrane", "--data", str(RECORD), "--mesh", "13x7", "--no-plots", "--out", str(out)]) == 0
+    assert "warning" not in capsys.readouterr().err
+    assert json.loads((out / "summary.json").read_text())["warnings"] == []
+
+
+def test_corner_bunched_sensors_are_warned(membrane):
+    corner = membrane.with_sensors([StretchSensorSpec(f"S{i + 1}", r) for i, r in enumerate(CORNER)])
+    run = wo.identify(corner, load="L1", noise=0.01, **SHORT)
+    assert any("bunched" in w and "11 % of the chord" in w for w in run.warnings), run.warnings
+    assert run.summary()["warnings"] == run.warnings
+    default = wo.identify(membrane, load="L1", noise=0.01, **SHORT)
+    assert default.warnings == []
+
+
+def test_duplicate_sensors_are_warned(membrane):
+    same = membrane.with_sensors([StretchSensorSpec(f"S{i + 1}", membrane.sensors[0].rect) for i in range(4)])
+    run = wo.identify(same, load="L1", noise=0.01, **SHORT)
+    assert any("S1/S2 (1.0000)" in w and "same thing" in w for w in run.warnings), run.warnings
+
+
+def test_near_duplicate_pair_is_named(membrane):
+    rects = [s.rect for s in membrane.sensors]
+    rects[1] = (rects[0][0] + 1e-4, *rects[0][1:])
+    near = membrane.with_sensors([StretchSensorSpec(f"S{i + 1}", r) for i, r in enumerate(rects)])
+    run = wo.identify(near, load="L1", noise=0.01, **SHORT)
+    assert any("S1/S2" in w for w in run.warnings) and not any("S3/S4" in w for w in run.warnings)
+
+
+def test_percent_stretch_warns_on_the_cli_and_in_the_summary(tmp_path, capsys):
+    pct = _rewrite(tmp_path, lambda c: [c[0], *[f"{float(x) * 100:.8g}" if x else x for x in c[1:]]])
+    out = tmp_path / "run"
+    assert main(["identify", "membrane", "--data", str(pct), "--mesh", "13x7", "--no-plots", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "wingopt identify: warning: sensor S1 reads up to 0.432" in err and "percent" in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert len(summary["warnings"]) == 1 and "pre-strain" in summary["warnings"][0]
+
+
+def test_data_that_do_not_fit_the_model_are_warned(membrane):
+    t = np.arange(600) * 1e-3
+    s = 0.002 + 0.001 * (np.arange(600) % 2)  # alternating every sample: no membrane does that
+    run = wo.identify(
+        "membrane", data=np.column_stack([t, s, 0.8 * s, 1.1 * s, 0.9 * s]), nodes=(13, 7), noise_std=1e-5
+    )
+    assert any("do not fit the model" in w for w in run.warnings), run.warnings
+
+
+# -- refusals ------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("scale", "unit"), [(1e3, "ms"), (1e6, "µs"), (1e9, "ns")])
+def test_time_in_ms_us_ns_is_refused_with_a_hint(tmp_path, capsys, scale, unit):
+    path = _rewrite(tmp_path, _scale_time(scale))
+    assert main(["identify", "membrane", "--data", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"are the times in {unit}?" in err and "LinAlgError" not in err
+
+
+def test_time_in_ms_through_the_api_is_an_input_error(record):
+    ms = dataclasses.replace(record, t=record.t * 1000)
+    with pytest.raises(InputError, match="are the times in ms"):
+        wo.identify("membrane", data=ms, nodes=(13, 7))
+    with pytest.raises(InputError, match="faster than 10 MHz"):
+        wo.identify("membrane", data=dataclasses.replace(record, t=record.t * 1e-6), nodes=(13, 7))
+
+
+def test_negated_stretch_is_refused(tmp_path, capsys):
+    neg = _rewrite(tmp_path, lambda c: [c[0], *[f"{-float(x):.8g}" if x else x for x in c[1:]]])
+    assert main(["identify", "membrane", "--data", str(neg), "--out", str(tmp_path / "o")]) == 2
+    assert "sensor S1: median value -0.00399 < 0" in capsys.readouterr().err.replace("-0.003992", "-0.00399")
+
+
+def test_sensor_named_t_is_refused(membrane, tmp_path, capsys):
+    src = (PROBLEMS_DIR / "membrane.toml").read_text().replace('name = "S1"', 'name = "t"')
+    (tmp_path / "m.toml").write_text(src)
+    assert main(["identify", str(tmp_path / "m.toml"), "--load", "L1", "--out", str(tmp_path / "o")]) == 2
+    assert "name = 't'" in capsys.readouterr().err
+    renamed = membrane.with_sensors([dataclasses.replace(membrane.sensors[0], name="t"), *membrane.sensors[1:]])
+    with pytest.raises(InputError, match="reserved for the time column"):
+        wo.identify(renamed, load="L1", noise=0.01, **SHORT)
+
+
+def test_seed_minus_one_is_refused_everywhere(membrane, tmp_path, capsys):
+    assert main(["identify", "membrane", "--load", "L1", "--seed", "-1", "--out", str(tmp_path / "a")]) == 2
+    assert main(["morph", "plate", "--shape", "twist", "--seed", "-1", "--out", str(tmp_path / "b")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("seed = -1: expected a whole number") == 2
+    with pytest.raises(InputError, match="seed = -1"):
+        wo.identify(membrane, load="L1", seed=-1, **SHORT)
+    with pytest.raises(InputError, match="seed = -1"):
+        wo.morph(load_problem("plate"), "twist", "lqr", seed=-1, nodes=(7, 31), t_end=0.1)
+
+
+def _plate_without(tmp_path, *sections):
+    out, skip = [], False
+    for line in (PROBLEMS_DIR / "plate.toml").read_text().splitlines():
+        if line.startswith("["):
+            skip = any(line.startswith(s) for s in sections)
+        if not skip:
+            out.append(line)
+    path = tmp_path / "bare.toml"
+    path.write_text("\n".join(out) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("method", ["lqr", "qp"])
+def test_plate_without_patches_is_a_clear_error(tmp_path, capsys, method):
+    path = _plate_without(tmp_path, "[[patches]]")
+    assert main(["morph", str(path), "--shape", "twist", "--method", method, "--out", str(tmp_path / "o")]) == 2
+    assert "no [[patches]]: morphing needs piezo patch pairs" in capsys.readouterr().err
+
+
+def test_plate_without_batten_and_piezo_materials_has_modes(tmp_path, capsys):
+    path = _plate_without(tmp_path, "[[patches]]", "[[battens]]", "[materials.batten]", "[materials.piezo]")
+    assert main(["modes", str(path), "--mesh", "7x31", "--json"]) == 0
+    f = json.loads(capsys.readouterr().out)["frequencies_hz"]
+    assert 0 < f[0] < f[1]
+
+
+def test_membrane_without_sensors_has_modes_but_no_identification(tmp_path, capsys):
+    src = (PROBLEMS_DIR / "membrane.toml").read_text()
+    src = src[: src.index("[[sensors]]")] + src[src.index("[identification]") :]
+    (tmp_path / "m.toml").write_text(src)
+    assert main(["modes", str(tmp_path / "m.toml"), "--mesh", "13x7", "--json"]) == 0
+    capsys.readouterr()
+    assert main(["identify", str(tmp_path / "m.toml"), "--load", "L1", "--out", str(tmp_path / "o")]) == 2
+    assert "no [[sensors]]" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("content", "needle"),
+    [
+        (b'kind = "membrane"\n\xff\xfe = 1\n', "not a UTF-8 text file"),
+        (("a = " + "[" * 5000 + "]" * 5000 + "\n").encode(), "nested too deeply"),
+        (("a = " + "{x=" * 600 + "1" + "}" * 600 + "\n").encode(), "nested too deeply"),
+    ],
+)
+def test_non_utf8_and_deeply_nested_toml_exit_2(tmp_path, capsys, content, needle):
+    (tmp_path / "p.toml").write_bytes(content)
+    assert main(["modes", str(tmp_path / "p.toml")]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and err.count("\n") == 1
+
+
+def test_prestrain_outside_the_physical_range_is_refused(tmp_path, capsys):
+    src = (PROBLEMS_DIR / "membrane.toml").read_text().replace("prestrain = 0.05 ", "prestrain = 1e6 ")
+    (tmp_path / "m.toml").write_text(src)
+    assert main(["modes", str(tmp_path / "m.toml")]) == 2
+    assert "prestrain = 1000000.0: expected a number in [1e-09, 0.5]" in capsys.readouterr().err
+
+
+def test_directory_given_as_a_file_is_reported_as_a_directory(tmp_path, capsys):
+    assert main(["identify", "membrane", "--data", str(tmp_path), "--out", str(tmp_path / "o")]) == 2
+    assert main(["modes", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("is a directory, expected a CSV file") == 1 and err.count("is a directory, expected a .toml") == 1
+
+
+def test_t_end_too_short_names_t_end(membrane, tmp_path, capsys):
+    assert main(["identify", "membrane", "--load", "L1", "--t-end", "0.002", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("wingopt identify: error: t_end = 0.002 s: 3 samples") and "noise_std" not in err
+
+
+# -- the API takes what the docs say ----------------------------------------------------------------------
+
+
+def test_api_data_as_array_and_measurements_and_problem_by_name(record):
+    by_meas = wo.identify("membrane", data=record, nodes=(13, 7))
+    arr = np.column_stack([record.t, record.values])
+    by_array = wo.identify("membrane", data=arr, nodes=(13, 7))
+    by_file = wo.identify("membrane", data=str(RECORD), nodes=(13, 7))
+    assert by_meas.lift == pytest.approx(by_file.lift, rel=1e-12)
+    assert by_array.lift == pytest.approx(by_file.lift, rel=1e-12)
+    assert abs(by_file.lift - 0.421124) / 0.421124 < 0.02  # the record's true lift (header)
+    with pytest.raises(InputError, match=r"array of shape \(5, 3\): expected \(N, 5\)"):
+        wo.identify("membrane", data=np.zeros((5, 3)))
+    with pytest.raises(InputError, match="got dict: expected a CSV path"):
+        wo.identify("membrane", data={"t": [0, 1]})
+
+
+def test_messages_have_plain_numbers_and_sensor_names(tmp_path, capsys):
+    path = tmp_path / "short.csv"
+    path.write_text("t,S1,S2,S3,S4\n" + "".join(f"{k * 1e-3:.3f},0.01,0.01,0.01,0.01\n" for k in range(12)))
+    assert main(["identify", "membrane", "--data", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "np.float64" not in err and "12 complete samples" in err
+    bad = tmp_path / "dec.csv"
+    bad.write_text("t,S1,S2,S3,S4\n0.002,0.01,0.01,0.01,0.01\n0.001,0.01,0.01,0.01,0.01\n")
+    assert main(["identify", "membrane", "--data", str(bad), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "t = 0.001 after 0.002" in err and "np.float64" not in err
+
+
+def test_no_runtime_warnings_on_stderr(tmp_path):
+    pct = _rewrite(tmp_path, lambda c: [c[0], *[f"{float(x) * 100:.8g}" if x else x for x in c[1:]]])
+    code = "import sys; from wingopt.cli import main; sys.exit(main(sys.argv[1:]))"
+    argv = ["identify", "membrane", "--data", str(pct), "--mesh", "13x7", "--no-plots", "--out", str(tmp_path / "o")]
+    proc = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    assert "RuntimeWarning" not in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_report_shows_warnings():
+    from wingopt.demo import _warnings
+
+    from wingopt.results.report import Report
+
+    summary = {"identify": {"L1": {"mhe": {"warnings": ["sensors bunched: x"]}, "jekf": {"warnings": []}}}}
+    items = _warnings(summary)
+    assert items == [("identify L1 mhe", "sensors bunched: x")]
+    html = Report("t").warnings(items).render()
+    assert "Warnings (1)" in html and "sensors bunched: x" in html
+    assert "Warnings: none" in Report("t").warnings([]).render()
+
+
+def test_initial_load_nan_or_zero_is_refused(membrane, tmp_path, capsys):
+    argv = ["identify", "membrane", "--load", "L1", "--initial-load", "nan", "--out", str(tmp_path / "o")]
+    assert main(argv) == 2
+    assert "initial_load = nan: expected a non-zero pressure" in capsys.readouterr().err
+    with pytest.raises(InputError, match="initial_load = 0"):
+        wo.identify(membrane, load="L1", initial_load=0, **SHORT)
+
+
+def test_api_time_message_has_plain_numbers():
+    data = np.array([[0.002, 0.01, 0.01, 0.01, 0.01], [0.001, 0.01, 0.01, 0.01, 0.01]])
+    with pytest.raises(InputError) as err:
+        wo.identify("membrane", data=data)
+    assert "t[1] = 0.001 after 0.002" in str(err.value) and "np.float64" not in str(err.value)
