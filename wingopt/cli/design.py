@@ -98,7 +98,9 @@ def run(args) -> int:
         nominal_count=args.nominal,
         aggregate=args.aggregate,
         allow_overlap=args.allow_overlap,
-        information=InformationSettings(noise=args.noise / 100.0, t_end=args.t_end),
+        information=InformationSettings(
+            noise=args.noise / 100.0, t_end=args.t_end, window_s=min(0.2, args.t_end) if args.t_end > 0 else 0.2
+        ),
     )
     result = design_sensors(problem, args.count, args.candidates, settings)
     summary = result.summary()

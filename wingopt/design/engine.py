@@ -23,7 +23,7 @@ import numpy as np
 
 from wingopt.design.candidates import CandidateSet, parse_candidates
 from wingopt.design.criteria import LINEAR_CRITERIA, LinearCriterion
-from wingopt.design.information import InformationSettings, ModalSensitivity
+from wingopt.design.information import InformationSettings, ModalSensitivity, SegmentInformation
 from wingopt.design.priors import PRIORS, gp_prior, smooth_loads, tikhonov_prior
 from wingopt.design.risk import BayesRisk
 from wingopt.design.selection import greedy, overlap_matrix, relax, round_weights, swap_improve
@@ -60,6 +60,8 @@ class DesignSettings:
         Whether chosen rectangles may overlap (default no: one membrane, one sensor per spot).
     rank : int
         Directions kept in the SDP relaxation.
+    swap_passes : int
+        Most passes of the swap search (each pass tries every position once).
     """
 
     criterion: str = "risk"
@@ -70,6 +72,7 @@ class DesignSettings:
     aggregate: str = "mean"
     allow_overlap: bool = False
     rank: int = 12
+    swap_passes: int = 20
     information: InformationSettings = field(default_factory=InformationSettings)
 
     def __post_init__(self):
@@ -101,6 +104,8 @@ class DesignResult:
     warnings: list[str]
     risk: BayesRisk | None = None
     sensitivity: ModalSensitivity | None = None
+    linear: LinearCriterion | None = None
+    risk_layout: np.ndarray | None = None  # the layout's indices in ``risk`` (a subset for linear criteria)
 
     @property
     def rects(self) -> np.ndarray:
@@ -141,6 +146,19 @@ def nominal_loads(problem, s: DesignSettings):
 
 def _length(problem, s: DesignSettings) -> float:
     return DEFAULT_LENGTH * problem.width if s.length_scale is None else s.length_scale
+
+
+def _subset(info: SegmentInformation, index) -> SegmentInformation:
+    idx = np.asarray(index, dtype=int)
+    return SegmentInformation(info.window[idx], info.rest[idx], info.peak[idx], info.samples)
+
+
+def _state_scale(risk: BayesRisk, sens: ModalSensitivity, q0) -> np.ndarray:
+    """The risk criterion whitens the state block: the same scaling for a raw information sum."""
+    from wingopt.design.criteria import state_prior_std
+
+    S = np.concatenate([state_prior_std(sens, q0), np.ones(sens.m)])
+    return S[:, None] * S[None, :]
 
 
 def _with_problem_sensors(problem, cands: CandidateSet) -> tuple[CandidateSet, np.ndarray | None]:
@@ -218,12 +236,14 @@ def design_sensors(
     )
 
     t1 = time.perf_counter()
-    risk = BayesRisk.build(sens, infos, loads, q0, s.aggregate)
+    # The risk over all candidates only when it is the criterion; else on the layouts reported.
+    risk = BayesRisk.build(sens, infos, loads, q0, s.aggregate) if s.criterion == "risk" else None
     if s.prior == "gp":
         prior = gp_prior(model, _length(problem, s), abs(problem.identification.initial_load))
     else:
-        mean_sum = risk.info.mean(axis=0)[None] * count
-        prior = tikhonov_prior(model, float(np.mean(risk.rule_lambdas(mean_sum, count))))
+        mean_sum = np.stack([np.stack([i.window.mean(axis=0), i.total.mean(axis=0)]) for i in infos])[None] * count
+        r_ = risk or BayesRisk.build(sens, [_subset(i, [0]) for i in infos], loads, q0)
+        prior = tikhonov_prior(model, float(np.mean(r_.rule_lambdas(mean_sum * _state_scale(r_, sens, q0), count))))
     kind = "a" if s.criterion == "risk" else s.criterion
     linear = LinearCriterion.build(kind, sens, infos, prior, q0, s.aggregate)
     timings["criteria"] = time.perf_counter() - t1
@@ -239,19 +259,28 @@ def design_sensors(
     g_layout, _ = greedy(linear, count, overlap)
     timings["greedy"] = time.perf_counter() - t3
     log.info("greedy done at %.1f s", time.perf_counter() - t0)
-    crit = risk if s.criterion == "risk" else linear
+    crit = risk if risk is not None else linear
     starts = {"relaxation": rounded, "greedy": g_layout}
-    if s.criterion == "risk":
+    if s.criterion == "risk" and count <= 8:
+        # greedy on the risk itself is a third start (costly for many sensors: K batched passes)
         starts["greedy-risk"] = greedy(risk, count, overlap)[0]
     t4 = time.perf_counter()
     best, best_val, best_from = None, np.inf, None
     for name, start in starts.items():
-        lay, path = swap_improve(crit, start, overlap)
+        lay, path = swap_improve(crit, start, overlap, max_passes=s.swap_passes)
         if path[-1] < best_val:
             best, best_val, best_from = lay, path[-1], name
     timings["swaps"] = time.perf_counter() - t4
     log.info("swaps done at %.1f s", time.perf_counter() - t0)
 
+    if risk is None:
+        keep = [best, rounded, g_layout] + ([default_idx] if default_idx is not None else [])
+        sub = np.unique(np.concatenate(keep))
+        risk = BayesRisk.build(sens, [_subset(i, sub) for i in infos], loads, q0, s.aggregate)
+        where = {int(c): k for k, c in enumerate(sub)}
+        risk_index = np.array([where[int(c)] for c in best])
+    else:
+        risk_index = np.asarray(best)
     info_r, weight_r, const_r, _ = linear.reduced(s.rank)
     red = _reduced_value(linear, info_r, weight_r, const_r, best)
     relaxation = {
@@ -283,8 +312,8 @@ def design_sensors(
         if crit.value(default_idx) < best_val:
             warnings.append("the problem's own layout scores better than the design (local optimum of the swaps)")
     pred = {
-        "risk_relative_load_error": float(risk.value(best)),
-        "risk_per_nominal": [float(v) for v in risk.per_nominal(risk.layout_sum(best)[None], count)[0]],
+        "risk_relative_load_error": float(risk.value(risk_index)),
+        "risk_per_nominal": [float(v) for v in risk.per_nominal(risk.layout_sum(risk_index)[None], count)[0]],
         "a_relative_posterior_std": float(
             linear.value(best) if kind == "a" else LinearCriterion.build("a", sens, infos, prior, q0).value(best)
         ),
@@ -299,7 +328,20 @@ def design_sensors(
         )
     timings["total"] = time.perf_counter() - t0
     return DesignResult(
-        problem, s, cands, np.asarray(best), float(best_val), pred, relaxation, baselines, timings, warnings, risk, sens
+        problem,
+        s,
+        cands,
+        np.asarray(best),
+        float(best_val),
+        pred,
+        relaxation,
+        baselines,
+        timings,
+        warnings,
+        risk,
+        sens,
+        linear,
+        risk_index,
     )
 
 

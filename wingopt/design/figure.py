@@ -18,7 +18,7 @@ def predicted_error_field(result, nx: int = 57, ny: int = 29):
     prob = result.problem
     sens = result.sensitivity
     loads = result.nominal_loads
-    coefs = result.risk.load_coefficients(result.layout)
+    coefs = result.risk.load_coefficients(result.risk_layout)
     xs = np.linspace(0, prob.width, nx)
     ys = np.linspace(0, prob.height, ny)
     X, Y = np.meshgrid(xs, ys)

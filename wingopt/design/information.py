@@ -54,6 +54,9 @@ class InformationSettings:
         Noise as a fraction of each sensor's peak output (0.01 = 1 %).
     sub : int
         Lattice cells per element and direction (candidate edges lie on this lattice).
+    rest_stride : int
+        After the first window, every ``rest_stride``-th sample is used with weight ``rest_stride``
+        (the response is then slowly varying); 1 (default) uses every sample.
     """
 
     modes: int = 40
@@ -62,6 +65,7 @@ class InformationSettings:
     window_s: float = 0.2
     noise: float = 0.01
     sub: int = 2
+    rest_stride: int = 1
 
     def __post_init__(self):
         def bad(name, expect):
@@ -79,6 +83,8 @@ class InformationSettings:
             bad("noise", "a positive fraction of the peak output (0.01 = 1 %)")
         if not (isinstance(self.sub, int) and self.sub >= 1):
             bad("sub", "an integer >= 1")
+        if not (isinstance(self.rest_stride, int) and self.rest_stride >= 1):
+            bad("rest_stride", "an integer >= 1")
 
 
 @dataclass(frozen=True, eq=False)
@@ -280,5 +286,6 @@ class ModalSensitivity:
             J = self.jacobian(c, q) / (p * pk)[:, None, None]
             Jt = J.transpose(0, 2, 1)
             win[a : a + chunk] = Jt[:, :, :nw] @ J[:, :nw]
-            rest[a : a + chunk] = Jt[:, :, nw:] @ J[:, nw:]
+            st = self.settings.rest_stride
+            rest[a : a + chunk] = st * (Jt[:, :, nw::st] @ J[:, nw::st])
         return SegmentInformation(win, rest, peak, (nw, self.steps + 1 - nw))

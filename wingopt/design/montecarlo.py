@@ -102,10 +102,15 @@ def _truth(problem: MembraneProblem, load: str, nodes: tuple[int, int], t_end: f
 
 
 def _estimator_model(problem: MembraneProblem, specs, nodes) -> MembraneModel:
-    prob = problem.with_sensors(specs)
-    if nodes is not None:
-        prob = prob.with_mesh(nodes)
-    return MembraneModel.from_problem(prob)
+    key = ("model", id(problem), problem.nodes, tuple(s.rect for s in specs), nodes)
+    if key not in _CACHE:
+        prob = problem.with_sensors(specs)
+        if nodes is not None:
+            prob = prob.with_mesh(nodes)
+        if len(_CACHE) > 64:
+            _CACHE.clear()
+        _CACHE[key] = MembraneModel.from_problem(prob)
+    return _CACHE[key]
 
 
 def run_task(task: IdentifyTask, settings: MHESettings | None = None) -> dict:
