@@ -37,9 +37,8 @@ def main() -> None:
         f"relaxation ({rel['solver']}, rank {rel['rank']}): bound {rel['bound']:.4f}, chosen (reduced) "
         f"{rel['chosen_reduced']:.4f}, gap {rel['gap']:.4f} ({100 * rel['relative_gap']:.0f} %)"
     )
-    print(
-        f"greedy {res.baselines['greedy']['value']:.4f}, rounded relaxation {res.baselines['relaxation_rounded']['value']:.4f}"
-    )
+    base = res.baselines
+    print(f"greedy {base['greedy']['value']:.4f}, rounded relaxation {base['relaxation_rounded']['value']:.4f}")
     print(f"design time {wall:.1f} s (target <= 60 s): {'met' if wall <= 60 else 'NOT met'}")
 
 

@@ -6,7 +6,8 @@
    mean field error ratio and the lift error per load; the designed layout's rank among
    ``--random`` random layouts by the criterion.
 2. ``rank`` — ``--layouts`` random 4-sensor layouts (non-overlapping, the default sensor sizes),
-   each measured by the MHE on 5 held-out loads (L2, L3, leading edge, rectangle, a smooth draw) x ``--seeds`` seeds; Spearman rank correlation of
+   each measured by the MHE on 5 held-out loads (L2, L3, leading edge, rectangle, a smooth draw)
+   x ``--seeds`` seeds; Spearman rank correlation of
    the predictions (risk, plain A, D) with the measured mean error.
 3. ``curve`` — accuracy vs K (4, 6, 8, 12, 32): designed vs a regular grid vs random layouts, the
    grid's sensor size for every K.
@@ -85,7 +86,7 @@ def measure(problem, layouts: dict, loads, seeds, args, pool) -> dict:
         out[rec["tag"]]["runs"].append(rec)
         if (i + 1) % 50 == 0 or i + 1 == len(tasks):
             print(f"  {i + 1}/{len(tasks)} identifications, {time.perf_counter() - t0:.0f} s", flush=True)
-    for name, d in out.items():
+    for d in out.values():
         runs = d["runs"]
         d["load_error"] = {L: float(np.mean([r["load_error"] for r in runs if r["load"] == L])) for L in loads}
         d["lift_error"] = {L: float(np.mean([r["lift_error"] for r in runs if r["load"] == L])) for L in loads}
