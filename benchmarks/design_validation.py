@@ -95,6 +95,53 @@ def measure(problem, layouts: dict, loads, seeds, args, pool) -> dict:
     return out
 
 
+def run_curve(problem, args, info, rng, pool, results, save) -> None:
+    """Accuracy vs K: designed (risk, coarser grid) vs the regular grid vs random layouts."""
+    curve = []
+    for K in (int(k) for k in args.ks.split(",")):
+        nx, ny = GRIDS[K]
+        grid = sensor_grid(problem, nx, ny)
+        w, h = grid[0].rect[1] - grid[0].rect[0], grid[0].rect[3] - grid[0].rect[2]
+        prob_k = problem.with_sensors(grid)
+        t1 = time.perf_counter()
+        dk = design_sensors(
+            prob_k,
+            K,
+            f"sizes={w}x{h};step={args.curve_step}",
+            DesignSettings(information=info, swap_passes=1, nominal_count=args.curve_nominal),
+        )
+        tk = time.perf_counter() - t1
+        pool_k = np.flatnonzero(dk.candidates.size_index >= 0)
+        rl = random_layouts(dk.candidates.rects, K, args.curve_random, rng, pool_k)
+        gidx = np.array(dk.baselines["problem_layout"]["layout"])
+        lay = {"designed": dk.rects, "grid": dk.candidates.rects[gidx]}
+        lay.update({f"random{i}": dk.candidates.rects[r] for i, r in enumerate(rl)})
+        print(f"curve K={K}: designed in {tk:.0f} s", flush=True)
+        m = measure(problem, lay, RANK_LOADS, range(args.curve_seeds), args, pool)
+        row = {
+            "K": K,
+            "size": [w, h],
+            "design_s": tk,
+            "designed": m["designed"]["mean_load_error"],
+            "grid": m["grid"]["mean_load_error"],
+            "random": float(np.mean([m[f"random{i}"]["mean_load_error"] for i in range(len(rl))])),
+            "predicted": {
+                "designed": dk.value,
+                "grid": float(dk.risk.value(gidx)),
+                "random": float(np.mean([dk.risk.value(r) for r in rl])),
+            },
+            "per_load": {k: v["load_error"] for k, v in m.items()},
+            "rects": dk.rects.tolist(),
+        }
+        curve.append(row)
+        print(
+            f"  K={K}: designed {row['designed']:.3f}, grid {row['grid']:.3f}, random {row['random']:.3f}",
+            flush=True,
+        )
+        results["curve"] = curve
+        save()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--parts", default="heldout,rank,curve")
@@ -105,6 +152,8 @@ def main() -> None:
     ap.add_argument("--ks", default="4,6,8,12,32")
     ap.add_argument("--curve-seeds", type=int, default=2)
     ap.add_argument("--curve-random", type=int, default=2)
+    ap.add_argument("--curve-step", type=int, default=4, help="candidate grid step of the curve's designs")
+    ap.add_argument("--curve-nominal", type=int, default=6, help="nominal loads of the curve's designs")
     ap.add_argument("--noise", type=float, default=0.01)
     ap.add_argument("--t-end", type=float, default=0.3)
     ap.add_argument("--truth", default="49x25")
@@ -128,6 +177,9 @@ def main() -> None:
     pool = mp.get_context("fork").Pool(args.workers) if args.workers > 1 else None
     info = InformationSettings(t_end=args.t_end, noise=args.noise)
     t0 = time.perf_counter()
+    if parts == ["curve"]:
+        run_curve(problem, args, info, np.random.default_rng(2027), pool, results, save)
+        return
     design = design_sensors(problem, 4, "step=2", DesignSettings(information=info))
     print(f"  stages: {design.timings}", flush=True)
     t_design = time.perf_counter() - t0
@@ -202,44 +254,7 @@ def main() -> None:
         save()
 
     if "curve" in parts:
-        curve = []
-        for K in (int(k) for k in args.ks.split(",")):
-            nx, ny = GRIDS[K]
-            grid = sensor_grid(problem, nx, ny)
-            w, h = grid[0].rect[1] - grid[0].rect[0], grid[0].rect[3] - grid[0].rect[2]
-            prob_k = problem.with_sensors(grid)
-            t1 = time.perf_counter()
-            dk = design_sensors(prob_k, K, f"sizes={w}x{h};step=2", DesignSettings(information=info, swap_passes=3))
-            tk = time.perf_counter() - t1
-            pool_k = np.flatnonzero(dk.candidates.size_index >= 0)
-            rl = random_layouts(dk.candidates.rects, K, args.curve_random, rng, pool_k)
-            gidx = np.array(dk.baselines["problem_layout"]["layout"])
-            lay = {"designed": dk.rects, "grid": dk.candidates.rects[gidx]}
-            lay.update({f"random{i}": dk.candidates.rects[r] for i, r in enumerate(rl)})
-            print(f"curve K={K}: designed in {tk:.0f} s", flush=True)
-            m = measure(problem, lay, RANK_LOADS, range(args.curve_seeds), args, pool)
-            row = {
-                "K": K,
-                "size": [w, h],
-                "design_s": tk,
-                "designed": m["designed"]["mean_load_error"],
-                "grid": m["grid"]["mean_load_error"],
-                "random": float(np.mean([m[f"random{i}"]["mean_load_error"] for i in range(len(rl))])),
-                "predicted": {
-                    "designed": dk.value,
-                    "grid": float(dk.risk.value(gidx)),
-                    "random": float(np.mean([dk.risk.value(r) for r in rl])),
-                },
-                "per_load": {k: v["load_error"] for k, v in m.items()},
-                "rects": dk.rects.tolist(),
-            }
-            curve.append(row)
-            print(
-                f"  K={K}: designed {row['designed']:.3f}, grid {row['grid']:.3f}, random {row['random']:.3f}",
-                flush=True,
-            )
-            results["curve"] = curve
-            save()
+        run_curve(problem, args, info, rng, pool, results, save)
     if pool is not None:
         pool.close()
     print(f"total {time.perf_counter() - t0:.0f} s", flush=True)

@@ -47,7 +47,9 @@ def register(sub, common) -> None:
     p.add_argument("--criterion", choices=("risk", "a", "lift", "d"), default="risk", help="design criterion")
     p.add_argument("--prior", choices=("gp", "tikhonov"), default="gp", help="load prior of a/lift/d (default gp)")
     p.add_argument("--length-scale", type=float, help="GP length scale, m (default 0.3 of the chord)")
-    p.add_argument("--nominal", type=int, default=4, help="nominal loads the design is robust over (default 4)")
+    p.add_argument(
+        "--nominal", type=int, help="nominal loads the design is robust over (default 12 for risk, 4 for a/lift/d)"
+    )
     p.add_argument("--aggregate", choices=("mean", "max"), default="mean", help="over the nominal loads")
     p.add_argument("--noise", type=float, default=1.0, help="noise in PERCENT of each sensor's peak (default 1)")
     p.add_argument("--t-end", type=float, default=1.0, help="record length, s (default 1)")

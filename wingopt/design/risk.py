@@ -142,8 +142,8 @@ class BayesRisk:
         """
         s2, Vw = np.linalg.eigh(Qw)
         s2 = np.maximum(s2, 0.0)
-        cw = np.einsum("bji,j->bi", Vw, c0)
-        nat = np.einsum("i,bij,j->b", self.smooth, Qw, self.smooth)[:, None]
+        cw = c0 @ Vw  # (B, m): Vw^T c0
+        nat = ((Qw @ self.smooth) @ self.smooth)[:, None]
         lam = nat * _LAM_GRID[None, :]  # (B, L)
         r = lam[:, :, None] / (s2[:, None, :] + lam[:, :, None])  # 1 - h, (B, L, m)
         bias = np.sum(s2[:, None, :] * r**2 * cw[:, None, :] ** 2, axis=-1)
@@ -200,11 +200,11 @@ class BayesRisk:
             lam = self._rule_lambda(Qw, self.c0[j], sensors)
             s2, Vx = np.linalg.eigh(Qt)
             s2 = np.maximum(s2, 0.0)
-            ct = np.einsum("bji,j->bi", Vx, self.c0[j])
+            ct = self.c0[j] @ Vx  # (B, m)
             h = s2 / (s2 + lam[:, None])
-            delta = self.c0[j][None, :] - np.einsum("bij,bj->bi", Vx, h * ct)
-            bias2 = self.a0[j] + 2.0 * delta @ self.b0[j] + np.einsum("bi,ij,bj->b", delta, self.Gc, delta)
-            gdiag = np.einsum("bji,jk,bki->bi", Vx, self.Gc, Vx)
+            delta = self.c0[j][None, :] - (Vx @ (h * ct)[:, :, None])[:, :, 0]
+            bias2 = self.a0[j] + 2.0 * delta @ self.b0[j] + np.sum((delta @ self.Gc) * delta, axis=1)
+            gdiag = np.sum(Vx * (self.Gc @ Vx), axis=1)  # diag(Vx^T Gc Vx)
             var = np.sum(s2 / (s2 + lam[:, None]) ** 2 * gdiag, axis=-1)
             out[:, j] = np.sqrt(np.maximum(bias2 + var, 0.0) / self.norm2[j])
         return out
