@@ -261,7 +261,7 @@ def design_sensors(
     log.info("greedy done at %.1f s", time.perf_counter() - t0)
     crit = risk if risk is not None else linear
     starts = {"relaxation": rounded, "greedy": g_layout}
-    if s.criterion == "risk" and count <= 8:
+    if s.criterion == "risk" and count <= 8 and s.swap_passes > 0:
         # greedy on the risk itself is a third start (costly for many sensors: K batched passes)
         starts["greedy-risk"] = greedy(risk, count, overlap)[0]
     t4 = time.perf_counter()
