@@ -116,7 +116,7 @@ def test_stale_work_directories_of_dead_runs_are_removed_foreign_ones_kept(tmp_p
 
 
 def test_disk_full_is_one_line_exit_2_and_no_leftovers(tmp_path, monkeypatch, capsys):
-    import wingopt.estimation.identify as ident
+    import wingopt.workflows.identify as ident
 
     def full(*a, **k):
         raise OSError(errno.ENOSPC, "No space left on device")
@@ -144,7 +144,7 @@ def test_exception_inside_keeps_the_earlier_result(tmp_path):
 _CHILD = textwrap.dedent(
     """
     import os, signal, sys
-    import wingopt.estimation.identify as ident
+    import wingopt.workflows.identify as ident
     from wingopt.cli import main
     real = ident.write_csv
     def write_then_signal(path, *a, **k):

@@ -241,12 +241,12 @@ def identify(
 
 def sanity_sigma(meas: Measurements, result: IdentificationResult):
     """The noise std the estimator used (or the data's own estimate) for the fit check."""
-    from wingopt.estimation.regularization import estimate_noise_std
+    from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
 
     sigma = result.info.get("noise_std", meas.noise_std)
     if sigma is None:
         try:
-            sigma = estimate_noise_std(meas.values, names=meas.sensor_names)
+            sigma = estimate_noise_std(meas.values, MHE_NOISE, meas.sensor_names)
         except InputError:
             return None
     return np.asarray(sigma, dtype=float)

@@ -1,0 +1,53 @@
+"""``wingopt design-sensors``: outputs, the --write-problem round trip and bad input (small and fast)."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+
+import numpy as np
+import pytest
+
+from wingopt.cli import main
+from wingopt.problem import PROBLEMS_DIR, load_problem
+
+CANDS = "only-rects;rect=0.02:0.05:0.01:0.025;rect=0.08:0.11:0.045:0.06;rect=0.1:0.13:0.01:0.025"
+
+
+@pytest.mark.parametrize("criterion", ["a", "risk"])
+def test_design_cli_round_trip(tmp_path, criterion):
+    out = tmp_path / "d"
+    new = tmp_path / "new.toml"
+    args = ["design-sensors", "membrane", "--count", "2", "--candidates", CANDS, "--criterion", criterion]
+    args += ["--t-end", "0.05", "--nominal", "1", "--out", str(out), "--write-problem", str(new), "-q"]
+    assert main(args) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["count"] == 2 and summary["candidates"] == 7  # 3 rects + the problem's 4 sensors
+    assert isinstance(summary["warnings"], list)
+    rel = summary["relaxation"]
+    assert rel["bound"] <= rel["chosen_reduced"] + 1e-6 and rel["gap"] >= -1e-6
+    assert (out / "layout.png").stat().st_size > 1000
+    pasted = tomllib.loads((out / "sensors.toml").read_text())
+    rects = [s["rect"] for s in summary["layout"]]
+    assert np.allclose([s["rect"] for s in pasted["sensors"]], rects, atol=1e-6)
+    # the written problem equals the original but for the sensors
+    original = load_problem("membrane")
+    written = load_problem(new)
+    assert np.allclose([list(s.rect) for s in written.sensors], rects, atol=1e-6)
+    assert written.with_sensors(original.sensors).material == original.material
+    assert (written.width, written.height, written.nodes) == (original.width, original.height, original.nodes)
+    assert written.identification == original.identification
+    a = tomllib.loads(new.read_text())
+    b = tomllib.loads((PROBLEMS_DIR / "membrane.toml").read_text())
+    a.pop("sensors"), b.pop("sensors")
+    assert a == b
+
+
+def test_design_cli_bad_input(tmp_path, capsys):
+    out = str(tmp_path / "x")
+    assert main(["design-sensors", "membrane", "--count", "0", "--out", out]) == 2
+    assert "count" in capsys.readouterr().err
+    assert main(["design-sensors", "membrane", "--count", "2", "--candidates", "step=x", "--out", out]) == 2
+    assert "step" in capsys.readouterr().err
+    assert main(["design-sensors", "membrane", "--count", "2", "--noise", "0", "--out", out]) == 2
+    assert "noise" in capsys.readouterr().err

@@ -1,0 +1,29 @@
+"""Optimal stretch-sensor layouts for membrane load identification (spec §9, issue 13).
+
+``design_sensors(problem, K)`` chooses ``K`` rectangles from a candidate grid: information of each
+candidate linearised along expected responses (:mod:`~wingopt.design.information`), Bayesian
+criteria (:mod:`~wingopt.design.criteria`: A, lift, D; :mod:`~wingopt.design.risk`: the
+estimator's expected bias + noise), convex relaxation with a bound, rounding, swaps and greedy
+(:mod:`~wingopt.design.selection`). :mod:`~wingopt.design.montecarlo` runs the real estimator on
+layouts as a map over independent tasks. See ``docs/sensor_design.md``.
+"""
+
+from wingopt.design.candidates import CandidateSet, candidate_grid, parse_candidates
+from wingopt.design.criteria import LinearCriterion
+from wingopt.design.engine import CRITERIA, DesignResult, DesignSettings, design_sensors
+from wingopt.design.information import InformationSettings, ModalSensitivity
+from wingopt.design.risk import BayesRisk
+
+__all__ = [
+    "design_sensors",
+    "DesignSettings",
+    "DesignResult",
+    "CRITERIA",
+    "InformationSettings",
+    "ModalSensitivity",
+    "CandidateSet",
+    "candidate_grid",
+    "parse_candidates",
+    "LinearCriterion",
+    "BayesRisk",
+]
