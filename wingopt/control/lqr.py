@@ -96,7 +96,27 @@ def lqr(*args, rtol: float = RTOL):
 
 
 def dlqr(*args, rtol: float = RTOL):
-    """Discrete-time LQR for ``x_{k+1} = A x_k + B u_k``; same returns and checks as :func:`lqr`."""
+    """Discrete-time LQR for ``x_{k+1} = A x_k + B u_k``, with the same checks as :func:`lqr`.
+
+    Parameters
+    ----------
+    *args
+        ``(sys, Q, R[, N])`` with a discrete :class:`~wingopt.dynamics.StateSpace` (or a
+        python-control system), or ``(A, B, Q, R[, N])``.
+    rtol : float
+        Largest accepted relative residual of the Riccati solution; above it the solution is
+        refined (Hewer's iteration), and :class:`~wingopt.errors.RiccatiAccuracyError` is raised if
+        it stays above.
+
+    Returns
+    -------
+    K : ndarray (m, n)
+        Gain of ``u = -K x``.
+    S : ndarray (n, n)
+        Stabilising solution of the discrete algebraic Riccati equation.
+    E : ndarray (n,)
+        Closed-loop eigenvalues ``eig(A - B K)``.
+    """
     A, B, rest = _system_matrices(args)
     Q, R, N = _weights(A, B, rest)
     try:

@@ -139,11 +139,24 @@ def _fast_table(path, text: str, sensor_names) -> tuple[np.ndarray, np.ndarray, 
 
 
 def read_measurements(path: str | Path, sensor_names: tuple[str, ...] | list[str]) -> tuple[Measurements, CsvReport]:
-    """Read ``path`` into :class:`Measurements` for the given sensor names (problem order).
+    """Read a measured record (CSV) for the given sensor names (problem order).
 
-    Returns the measurements (NaN where missing, on a uniform time grid) and a :class:`CsvReport`.
     A clean numeric file is parsed by ``np.loadtxt`` (1 h of 1 kHz, 4 sensors in ~3 s); a file with
     any problem is re-read line by line so that the error names its line.
+
+    Parameters
+    ----------
+    path : str or Path
+        CSV file: a ``t`` column (s) and one column per sensor, headers = sensor names.
+    sensor_names : sequence of str
+        The problem's sensor names, in its order.
+
+    Returns
+    -------
+    Measurements
+        NaN where missing, on a uniform time grid.
+    CsvReport
+        What was read: rows, missing rows and gaps, ignored columns.
     """
     name = str(path)
     text = _read_text(path)

@@ -67,7 +67,20 @@ def parse_problem(data: dict[str, Any], source: str = "<memory>", name: str = "p
 
 
 def load_problem(problem: str | Path):
-    """Read and validate a problem file (path or built-in name)."""
+    """Read and validate a problem file (path or built-in name).
+
+    Parameters
+    ----------
+    problem : str or Path
+        A built-in name (``"membrane"``, ``"plate"``: the files shipped in the package) or the
+        path of a TOML file of the same schema.
+
+    Returns
+    -------
+    MembraneProblem or PlateProblem
+        The validated, frozen problem (units SI). Unknown keys and non-physical values raise a
+        :class:`~wingopt.errors.ProblemFileError` naming the field.
+    """
     path = _resolve(problem)
     try:
         with open(path, "rb") as fh:
@@ -84,7 +97,18 @@ def load_problem(problem: str | Path):
 
 
 def parse_mesh(text: str) -> tuple[int, int]:
-    """``"25x13"`` -> ``(25, 13)`` nodes in x and y."""
+    """Parse a mesh given as text.
+
+    Parameters
+    ----------
+    text : str
+        ``"NXxNY"``, nodes in x and y, e.g. ``"25x13"``.
+
+    Returns
+    -------
+    tuple of int
+        ``(nx, ny)``.
+    """
     m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", str(text))
     if not m:
         raise InputError(f"mesh = {text!r}: expected NXxNY, nodes in x and y, e.g. 25x13")
