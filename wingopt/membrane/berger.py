@@ -32,7 +32,7 @@ import scipy.sparse.linalg as spla
 
 from wingopt.errors import InputError, SolverError
 from wingopt.membrane.model import MembraneModel
-from wingopt.membrane.nonlinear import MembraneParameters, membrane_stiffness, prestress_tensions
+from wingopt.membrane.nonlinear import MembraneParameters, PrestressedOperators, membrane_stiffness
 
 __all__ = ["BergerMembrane", "SeparableModes"]
 
@@ -82,7 +82,7 @@ class SeparableModes:
         return self._apply(self.vx.T, self.vy.T, p)
 
 
-class BergerMembrane:
+class BergerMembrane(PrestressedOperators):
     """Uniform-tension nonlinear membrane on the linear model's mesh.
 
     Parameters
@@ -132,45 +132,10 @@ class BergerMembrane:
         return other
 
     # -- operators ------------------------------------------------------------------------------
-    @cached_property
-    def gx(self) -> sp.csr_matrix:
-        sx = self.space
-        return sp.kron(sx.bx.gram(1, 1), sx.by.gram(0, 0), format="csr")
-
-    @cached_property
-    def gy(self) -> sp.csr_matrix:
-        sx = self.space
-        return sp.kron(sx.bx.gram(0, 0), sx.by.gram(1, 1), format="csr")
 
     @cached_property
     def modes(self) -> SeparableModes:
         return SeparableModes.build(self.space)
-
-    @property
-    def gram(self) -> sp.csr_matrix:
-        return self.linear.gram
-
-    @property
-    def mass(self) -> sp.csr_matrix:
-        return self.linear.mass
-
-    @property
-    def prestress(self) -> tuple[float, float]:
-        return prestress_tensions(self.problem.material, self.params)
-
-    @cached_property
-    def linear_stiffness(self) -> sp.csr_matrix:
-        """``K_T0 = Tx0 Gx + Ty0 Gy``."""
-        tx, ty = self.prestress
-        return (tx * self.gx + ty * self.gy).tocsr()
-
-    @cached_property
-    def damping(self) -> sp.csr_matrix:
-        """``s_v gamma M + s_kv eta K_T0`` (see :mod:`wingopt.membrane.nonlinear`)."""
-        mat, p = self.problem.material, self.params
-        return (
-            p.viscous_scale * mat.viscous * self.gram + p.kelvin_voigt_scale * mat.kelvin_voigt * self.linear_stiffness
-        ).tocsr()
 
     # -- force and derivatives ------------------------------------------------------------------
     def stretch(self, z: np.ndarray) -> tuple[float, float]:

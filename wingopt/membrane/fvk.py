@@ -33,7 +33,7 @@ import scipy.sparse.linalg as spla
 from wingopt.errors import InputError, SolverError
 from wingopt.fe import gauss_legendre
 from wingopt.membrane.model import MembraneModel
-from wingopt.membrane.nonlinear import MembraneParameters, membrane_stiffness, prestress_tensions
+from wingopt.membrane.nonlinear import MembraneParameters, PrestressedOperators, membrane_stiffness
 
 __all__ = ["FvKMembrane", "StaticSolution", "PointOperators"]
 
@@ -124,7 +124,7 @@ class StaticSolution:
     residual: float
 
 
-class FvKMembrane:
+class FvKMembrane(PrestressedOperators):
     """Föppl–von Kármán membrane on the linear model's mesh and spline space.
 
     Parameters
@@ -149,41 +149,6 @@ class FvKMembrane:
         self.ops = PointOperators.build(self.space, order)
 
     # -- linear operators -------------------------------------------------------------------
-    @cached_property
-    def gx(self) -> sp.csr_matrix:
-        """``Gx = ∫ phi_x phi_x^T``."""
-        return self.ops.matrix(("xx", 1.0))
-
-    @cached_property
-    def gy(self) -> sp.csr_matrix:
-        """``Gy = ∫ phi_y phi_y^T``."""
-        return self.ops.matrix(("yy", 1.0))
-
-    @property
-    def prestress(self) -> tuple[float, float]:
-        return prestress_tensions(self.problem.material, self.params)
-
-    @cached_property
-    def linear_stiffness(self) -> sp.csr_matrix:
-        """``K_T0 = Tx0 Gx + Ty0 Gy``: the small-deflection limit of the tangent."""
-        tx, ty = self.prestress
-        return (tx * self.gx + ty * self.gy).tocsr()
-
-    @property
-    def gram(self) -> sp.csr_matrix:
-        return self.linear.gram
-
-    @cached_property
-    def mass(self) -> sp.csr_matrix:
-        return self.linear.mass
-
-    @cached_property
-    def damping(self) -> sp.csr_matrix:
-        """``s_v gamma M + s_kv eta K_T0`` (see :mod:`wingopt.membrane.nonlinear`)."""
-        mat, p = self.problem.material, self.params
-        return (
-            p.viscous_scale * mat.viscous * self.gram + p.kelvin_voigt_scale * mat.kelvin_voigt * self.linear_stiffness
-        ).tocsr()
 
     @cached_property
     def _inplane(self):

@@ -22,6 +22,7 @@ import dataclasses
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Protocol
 
 import numpy as np
@@ -31,6 +32,7 @@ import scipy.sparse.linalg as spla
 from wingopt.errors import InputError, SolverError
 
 __all__ = [
+    "PrestressedOperators",
     "MembraneParameters",
     "AlphaSettings",
     "NonlinearStructure",
@@ -95,6 +97,53 @@ def prestress_tensions(material, params: MembraneParameters) -> tuple[float, flo
     """``Tx0 = C (eps0_x + nu eps0_y)``, ``Ty0 = C (eps0_y + nu eps0_x)`` (N/m)."""
     C, nu = membrane_stiffness(material), material.poisson_ratio
     return C * (params.eps0_x + nu * params.eps0_y), C * (params.eps0_y + nu * params.eps0_x)
+
+
+class PrestressedOperators:
+    """The operators every nonlinear membrane shares: Grams of the slopes, prestress, damping.
+
+    Mixed into :class:`~wingopt.membrane.berger.BergerMembrane` and
+    :class:`~wingopt.membrane.fvk.FvKMembrane`, which set ``linear`` (the linear
+    :class:`~wingopt.membrane.MembraneModel` of the mesh), ``space``, ``problem`` and ``params``.
+    """
+
+    @cached_property
+    def gx(self) -> sp.csr_matrix:
+        """``Gx = ∫ phi_x phi_x^T`` (Kronecker product of 1-D Grams)."""
+        sx = self.space
+        return sp.kron(sx.bx.gram(1, 1), sx.by.gram(0, 0), format="csr")
+
+    @cached_property
+    def gy(self) -> sp.csr_matrix:
+        """``Gy = ∫ phi_y phi_y^T``."""
+        sx = self.space
+        return sp.kron(sx.bx.gram(0, 0), sx.by.gram(1, 1), format="csr")
+
+    @property
+    def gram(self) -> sp.csr_matrix:
+        return self.linear.gram
+
+    @property
+    def mass(self) -> sp.csr_matrix:
+        return self.linear.mass
+
+    @property
+    def prestress(self) -> tuple[float, float]:
+        return prestress_tensions(self.problem.material, self.params)
+
+    @cached_property
+    def linear_stiffness(self) -> sp.csr_matrix:
+        """``K_T0 = Tx0 Gx + Ty0 Gy``: the small-deflection limit of the tangent."""
+        tx, ty = self.prestress
+        return (tx * self.gx + ty * self.gy).tocsr()
+
+    @cached_property
+    def damping(self) -> sp.csr_matrix:
+        """``s_v gamma M + s_kv eta K_T0`` (the linear model's damping at the prestress, scaled)."""
+        mat, p = self.problem.material, self.params
+        return (
+            p.viscous_scale * mat.viscous * self.gram + p.kelvin_voigt_scale * mat.kelvin_voigt * self.linear_stiffness
+        ).tocsr()
 
 
 @dataclass(frozen=True)
