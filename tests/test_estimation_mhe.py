@@ -26,7 +26,7 @@ from wingopt.estimation.regularization import (
 )
 from wingopt.fe import VALUE, EdgeCondition, SplineBasis1D, TensorSpace, assemble, assemble_mixed, separable
 from wingopt.membrane import MembraneModel, load_case, simulate_response
-from wingopt.solvers import SolveStatus
+from wingopt.optim.status import SolveStatus
 
 SMALL = (13, 7)
 SMALL_TRUTH = (25, 13)

@@ -9,9 +9,10 @@
 * ``ipopt``: the whole nonlinear window problem handed to IPOPT through CasADi (exact Hessian by
   automatic differentiation), built once per window shape with parameters; supports bounds.
 
-All report :class:`wingopt.solvers.SolveStatus`; a failure raises :class:`~wingopt.errors.SolverError`
-naming the backend and its own status. Every backend works in scaled unknowns
-``xi = theta / scale`` so that all unknowns are O(1).
+The QP steps, the backend names of those QPs, the status mapping and the failure path
+(:class:`~wingopt.errors.SolverError` naming backend, raw status and hint) come from
+:mod:`wingopt.optim`; this module keeps the Gauss–Newton/LM logic and the window NLP. Every
+backend works in scaled unknowns ``xi = theta / scale`` so that all unknowns are O(1).
 """
 
 from __future__ import annotations
@@ -22,17 +23,29 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wingopt.errors import InputError, SolverError
+from wingopt.errors import InputError
 from wingopt.estimation.mhe_window import WindowProblem
-from wingopt.solvers import SolveStatus, status_from
+from wingopt.optim.casadi_backend import ipopt_options
+from wingopt.optim.least_distance import LDP_SOLVERS, LeastDistanceQP
+from wingopt.optim.status import SolveStatus, fail, status_from
 
-__all__ = ["WindowSolution", "WindowSolver", "NumpySolver", "CvxpySolver", "IpoptSolver", "make_solver", "BACKENDS"]
+__all__ = [
+    "WindowSolution",
+    "WindowSolver",
+    "NumpySolver",
+    "CvxpySolver",
+    "IpoptSolver",
+    "make_solver",
+    "BACKENDS",
+    "QP_SOLVERS",
+]
 
 log = logging.getLogger(__name__)
 
 BACKENDS = ("numpy", "cvxpy", "ipopt")
 
-_HINT = "try another MHE backend (--backend numpy|cvxpy|ipopt), a longer window, or check the data's units"
+QP_SOLVERS = LDP_SOLVERS
+"""QP solvers of the ``cvxpy`` backend's steps (:data:`wingopt.optim.least_distance.LDP_SOLVERS`)."""
 
 
 @dataclass(eq=False)
@@ -80,7 +93,7 @@ class WindowSolver:
     def _finish(self, problem, theta, raw, iterations, t0, status=None) -> WindowSolution:
         status = status or status_from(self.name, raw)
         if not status.ok:
-            raise SolverError(self.name, raw, _HINT)
+            raise fail(self.name, raw, "mhe", status)
         H, _ = problem.normal_equations(theta)
         return WindowSolution(
             theta, problem.cost(theta), H, status, raw, iterations, self.name, time.perf_counter() - t0
@@ -119,7 +132,7 @@ class _LevenbergMarquardt(WindowSolver):
         xi = np.asarray(theta0, dtype=float) / D
         cost = problem.cost(D * xi)
         if not np.isfinite(cost):
-            raise SolverError(self.name, "non-finite cost at the start", _HINT)
+            raise fail(self.name, "non-finite cost at the start", "mhe")
         # Start as Gauss–Newton: warm-started windows are next to their optimum; a failed step raises
         # the damping quickly (x2, x4, ...).
         mu, nu = 1e-8, 2.0
@@ -208,68 +221,31 @@ class CvxpySolver(_LevenbergMarquardt):
 
     def __init__(self, max_iterations: int = 100, tolerance: float = 1e-3, solver: str = "clarabel") -> None:
         super().__init__(max_iterations, tolerance)
-        solver = solver.lower()
-        if solver not in ("clarabel", "osqp"):
-            raise InputError(f"qp solver = {solver!r}: expected 'clarabel' or 'osqp'")
-        self.qp_solver = solver
-        self._cache: dict = {}
+        self.qp_solver = str(solver).lower()
+        self._qp = LeastDistanceQP(self.qp_solver, label=f"cvxpy-{self.qp_solver}", context="mhe")
 
     @property
     def label(self) -> str:
         return f"cvxpy-{self.qp_solver}"
 
-    def _build(self, problem: WindowProblem):
-        import cvxpy as cp
-
-        n = problem.dim
-        nb = 0 if problem.bounds is None else problem.bounds.A.shape[0]
-        key = (n, nb)
-        if key in self._cache:
-            return self._cache[key]
-        z = cp.Variable(n)
-        c = cp.Parameter(n)
-        cons = []
-        extra = {}
-        if nb:
-            M = cp.Parameter((nb, n))
-            lo = cp.Parameter(nb)
-            hi = cp.Parameter(nb)
-            cons = [M @ z >= lo, M @ z <= hi]
-            extra = {"M": M, "lo": lo, "hi": hi}
-        prob = cp.Problem(cp.Minimize(cp.sum_squares(z - c)), cons)
-        self._cache[key] = (prob, z, c, extra)
-        return self._cache[key]
-
     def _step(self, problem, xi, Hs, bs, mu):
-        import cvxpy as cp
         import scipy.linalg as sla
 
         Hd = Hs + mu * np.diag(np.maximum(np.diag(Hs), 1e-12))
         L = _cholesky(Hd)
         if L is None:
             return None
-        prob, z, c, extra = self._build(problem)
-        c.value = sla.solve_triangular(L, bs, lower=True)
-        if extra:
+        c = sla.solve_triangular(L, bs, lower=True)
+        M = lo = hi = None
+        if problem.bounds is not None and problem.bounds.A.shape[0]:
             D = problem.scale
             As = problem.bounds.A * D[None, :]
-            # (A L^-T) = (L^-1 A^T)^T
-            extra["M"].value = sla.solve_triangular(L, As.T, lower=True).T
+            M = sla.solve_triangular(L, As.T, lower=True).T  # (A L^-T) = (L^-1 A^T)^T
             Ax = As @ xi
             lim = 1e30
-            extra["lo"].value = np.maximum(problem.bounds.lo, -lim) - Ax
-            extra["hi"].value = np.minimum(problem.bounds.hi, lim) - Ax
-        try:
-            if self.qp_solver == "clarabel":
-                prob.solve(solver=cp.CLARABEL)
-            else:
-                prob.solve(solver=cp.OSQP, eps_abs=1e-10, eps_rel=1e-10, max_iter=50000, polishing=True)
-        except cp.SolverError as exc:
-            raise SolverError(self.label, f"solver error: {exc}", _HINT) from None
-        status = status_from(self.qp_solver, prob.status)
-        if not status.ok or z.value is None:
-            raise SolverError(self.label, str(prob.status), _HINT)
-        return sla.solve_triangular(L.T, np.asarray(z.value), lower=False)
+            lo = np.maximum(problem.bounds.lo, -lim) - Ax
+            hi = np.minimum(problem.bounds.hi, lim) - Ax
+        return sla.solve_triangular(L.T, self._qp.solve(c, M, lo, hi), lower=False)
 
     def solve(self, problem: WindowProblem, theta0: np.ndarray) -> WindowSolution:
         sol = super().solve(problem, theta0)
@@ -372,17 +348,10 @@ class IpoptSolver(WindowSolver):
             hess = ca.Function(
                 "hess_lag", [z, params, lam_f, lam_g], [ca.triu(lam_f * H_z)], ["x", "p", "lam_f", "lam_g"], ["hess"]
             )
-        opts = {
-            "ipopt.print_level": self.print_level,
-            "print_time": False,
-            "ipopt.max_iter": self.max_iterations,
-            "ipopt.tol": 1e-8,
-            "ipopt.acceptable_tol": 1e-6,
-            "ipopt.sb": "yes",
-            "ipopt.mu_strategy": "adaptive",
-        }
+        ipopt = ipopt_options(1e-8, self.max_iterations, self.print_level, acceptable_tol=1e-6)
         if not nb:
-            opts["ipopt.mu_init"] = 1e-8
+            ipopt["mu_init"] = 1e-8
+        opts = {"print_time": False, "ipopt": ipopt}
         if hess is not None:
             opts["hess_lag"] = hess
         solver = ca.nlpsol("mhe_window", "ipopt", nlp, opts)
@@ -421,7 +390,7 @@ class IpoptSolver(WindowSolver):
         try:
             res = solver(**args)
         except RuntimeError as exc:  # pragma: no cover - casadi raises on internal errors
-            raise SolverError(self.name, f"casadi error: {exc}", _HINT) from None
+            raise fail(self.name, f"casadi error: {exc}", "mhe") from None
         stats = solver.stats()
         raw = stats.get("return_status", "unknown")
         theta = D * (xi0 + P @ np.asarray(res["x"]).ravel())
