@@ -29,7 +29,8 @@ active limits, the whole scheme is the infinite-horizon LQR. ``terminal="static"
 
 QP. Written once with the states as variables (``formulation="sparse"``, banded KKT: the default
 for Clarabel, OSQP, IPOPT and the sparse CasADi plugins), and condensed by eliminating the states
-(``"condensed"``, dense ``N m`` Hessian: the default for the dense active-set plugins); the
+(``"condensed"``, dense ``N m`` Hessian: the default for the dense solvers, DAQP (the default
+backend), PIQP, ProxQP and the dense active-set CasADi plugins); the
 parameter ``p = (x_0, w_prev)`` enters the linear term and the bounds only
 (:class:`~wingopt.optim.qp.ParametricQP`), so each backend is built once and re-solved
 each period, warm-started from the shifted previous plan.

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from wingopt.dynamics.reduction import CORRECTIONS
 from wingopt.errors import InputError
-from wingopt.optim.registry import BACKENDS
+from wingopt.optim.registry import BACKENDS, default_backend
 
 __all__ = ["QPSettings", "MODES", "FORMULATIONS"]
 
@@ -44,10 +44,13 @@ class QPSettings:
         ``"lqr"`` (Riccati terminal cost, default) or ``"static"`` (``x_N`` = static optimum).
     formulation : str
         ``"condensed"`` (states eliminated, dense Hessian), ``"sparse"`` (states kept, banded KKT)
-        or ``"auto"``: condensed for the dense active-set CasADi plugins (qpoases, daqp) up to 600
-        input unknowns, sparse otherwise (the faster choice measured for each backend).
+        or ``"auto"``: the form the backend is fastest on (measured, ``docs/control_qp.md``):
+        condensed for the dense solvers (DAQP, PIQP, ProxQP, the qpoases/daqp CasADi plugins) up to
+        600 input unknowns, sparse otherwise (Clarabel, OSQP, IPOPT).
     solver : str
-        ``"clarabel"`` (default), ``"osqp"``, ``"ipopt"`` or ``"casadi-qp"``.
+        A name of :data:`wingopt.optim.registry.BACKENDS`: ``"daqp"`` (default when installed: the
+        fastest measured, ``benchmarks/bench_latency.py``), ``"clarabel"`` (the default otherwise),
+        ``"osqp"``, ``"piqp"``, ``"proxqp"``, ``"ipopt"`` or ``"casadi-qp"``.
     plugin : str or None
         CasADi QP plugin for ``casadi-qp`` (default ``qpoases``).
     tolerance : float or None
@@ -78,7 +81,7 @@ class QPSettings:
     slew_rate: float | None = 1.0e5
     terminal: str = "lqr"
     formulation: str = "auto"
-    solver: str = "clarabel"
+    solver: str = field(default_factory=default_backend)
     plugin: str | None = None
     tolerance: float | None = None
     mode: str = "closed-loop"

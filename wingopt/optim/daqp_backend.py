@@ -56,9 +56,15 @@ class DaqpBackend(QPBackend):
         self._model = daqp.Model()
         # primal_tol is in the QP's (scaled) units; the dual tolerance stays DAQP's default.
         self._model.settings = {"primal_tol": self.tolerance, "iter_limit": self.max_iterations}
+        self._setup()
+
+    def _setup(self) -> int:
+        """(Re)build the workspace on the current data; a negative flag (e.g. bounds that cross at
+        the build's ``p = 0``) leaves it to be set up again by the next solve."""
+        d = self._dense
         flag, _ = self._model.setup(d.H, self._f, self._A, self._hi, self._lo, self._sense)
-        if flag < 0:
-            raise RuntimeError(f"daqp setup failed with exit flag {flag}")
+        self._ready = flag >= 0
+        return int(flag)
 
     def _bounds(self, p):
         d = self._dense
@@ -71,8 +77,14 @@ class DaqpBackend(QPBackend):
     def _solve(self, p, warm):
         lo, hi = self._bounds(p)
         self._f[:], self._hi[:], self._lo[:] = self._dense.q(p), hi, lo
-        # Leaving `sense` out keeps the active set of the previous solve: the warm start DAQP is built for.
-        self._model.update(f=self._f, bupper=self._hi, blower=self._lo)
+        if not self._ready:
+            flag = self._setup()
+            if flag < 0:
+                raw = DAQP_EXITFLAGS.get(flag, f"exit flag {flag}")
+                return None, raw, status_from(self.name, raw), 0
+        else:
+            # Leaving `sense` out keeps the active set of the previous solve: the warm start DAQP is built for.
+            self._model.update(f=self._f, bupper=self._hi, blower=self._lo)
         x, _, flag, info = self._model.solve()
         raw = DAQP_EXITFLAGS.get(int(flag), f"exit flag {flag}")
         status = SolveStatus.OPTIMAL if flag == 1 else status_from(self.name, raw)

@@ -35,7 +35,8 @@ class ProxqpBackend(QPBackend):
         s = self._qp.settings
         s.eps_abs = self.tolerance
         s.eps_rel = 0.0
-        s.max_iter = self.max_iterations
+        # Few iterations suffice on a feasible QP (tens, warm); an infeasible one runs to the limit.
+        s.max_iter = min(self.max_iterations, 1000)
         s.verbose = False
         zero = np.zeros(self.qp.n_parameters)
         self._qp.init(**self._data(zero, d.H, d.Aeq, C))
