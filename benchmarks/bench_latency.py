@@ -14,7 +14,7 @@ by a volt can cost the same to 1e-8.)
 Usage::
 
     OMP_NUM_THREADS=1 nice python benchmarks/bench_latency.py                  # 13x61, twist, 10 ms
-    OMP_NUM_THREADS=1 nice python benchmarks/bench_latency.py --period 0.001 --backends daqp,clarabel
+    OMP_NUM_THREADS=1 nice python benchmarks/bench_latency.py --period 0.001 --max-modes 150 --backends daqp,clarabel
 """
 
 from __future__ import annotations
@@ -89,6 +89,7 @@ def main() -> None:
     ap.add_argument("--period", type=float, default=0.01)
     ap.add_argument("--t-end", type=float, default=2.0)
     ap.add_argument("--horizon", type=int, default=None)
+    ap.add_argument("--max-modes", type=int, default=None, help="most modes of the reduction (1 kHz needs > 60)")
     ap.add_argument("--backends", default=",".join(CONFIGS), help=f"comma list of {', '.join(CONFIGS)}")
     args = ap.parse_args()
     installed = set(available_backends())
@@ -112,6 +113,8 @@ def main() -> None:
         opts = dict(CONFIGS[label])
         if args.horizon:
             opts["horizon"] = args.horizon
+        if args.max_modes:
+            opts["max_modes"] = args.max_modes
         ctrl = make_qp_controller(model, target, vmin=VMIN, vmax=VMAX, period=args.period, **opts)
         ctrls[label] = ctrl
         wall, cpu, err, params = run_loop(model, plant, ctrl, target, steps, record=ref_params is None)
