@@ -58,7 +58,7 @@ class IpoptSolver(WindowSolver):
     steps to the convex region (0.03 s against 0.5 s of IPOPT's 36 regularised iterations on the
     protocol's L1 run), and IPOPT finishes from there; with bounds, or ``cold_start_lm=False``,
     IPOPT with the exact Hessian at every iterate does the whole solve. ``hessian="reuse"`` is the
-    default (1 s of 1 kHz data: 0.39 s process CPU time against 1.38 s with ``"analytic"``, see
+    default (1 s of 1 kHz data: 0.56 s process CPU time against 1.34 s with ``"analytic"``, see
     ``benchmarks/bench_mhe.py``). The NLP and its optimum are the same; warm-started
     windows start next to their optimum, where the Hessian barely changes (measured in
     ``benchmarks/bench_mhe.py``).
