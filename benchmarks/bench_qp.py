@@ -5,7 +5,7 @@ Prints, for the chosen mesh (default 13x61) and shape(s):
 * the reduced model's size (modes kept by the tolerance, states, measured error and band);
 * build time (reduction, static optimum, terminal cost, QP assembly, backend compile) against the
   re-solve time of one closed-loop step;
-* the median (and 90th percentile, max) time per closed-loop QP step, relative to the 10 ms
+* the median (and 90th percentile, max) time per closed-loop QP solve, relative to the 10 ms
   control period (target: below 1.0), for each backend, measured inside the closed-loop harness
   on the full-order plant (the controller's own solve times; ``step`` adds the Kalman filter).
 
@@ -13,6 +13,9 @@ Usage::
 
     OMP_NUM_THREADS=1 python benchmarks/bench_qp.py                   # 13x61, twist, all backends
     OMP_NUM_THREADS=1 python benchmarks/bench_qp.py --mesh 7x31 --shape all --backends clarabel
+
+For the whole controller step against the period (wall and CPU time, p50/p99/max) and the
+agreement of all backends on the same QPs, see ``benchmarks/bench_latency.py``.
 
 Single-threaded BLAS is the honest setting on this loaded 2-core machine (threaded BLAS on tiny
 matrices only adds contention).
@@ -34,11 +37,14 @@ from wingopt.problem import load_problem, parse_mesh
 
 PERIOD = 0.01
 CONFIGS = {
+    "daqp": dict(solver="daqp"),
     "clarabel": dict(solver="clarabel"),
     "osqp": dict(solver="osqp"),
     "osqp (tol 1e-5)": dict(solver="osqp", tolerance=1e-5),
     "casadi-qp/qpoases": dict(solver="casadi-qp", plugin="qpoases"),
     "casadi-qp/piqp": dict(solver="casadi-qp", plugin="piqp"),
+    "piqp": dict(solver="piqp"),
+    "proxqp": dict(solver="proxqp"),
     "ipopt": dict(solver="ipopt"),
 }
 
@@ -82,7 +88,7 @@ def main() -> None:
         f"reduced model: {first['reduced_modes']} modes + quasi-static residual of 9 patches -> "
         f"{first['reduced_states']} states (frequency-response error {first['reduction_error']:.2e} "
         f"on 0..{first['reduction_band_hz']:g} Hz); QP: horizon {first['qp_horizon']}, "
-        f"{first['qp_variables']} variables ({first['qp_formulation']} form for clarabel)"
+        f"{first['qp_variables']} variables ({first['qp_formulation']} form for {rows[0][1]})"
     )
     print()
     head = (

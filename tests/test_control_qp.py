@@ -6,13 +6,13 @@ import scipy.sparse as sp
 from scipy.optimize import lsq_linear
 
 from wingopt.control.mpc import QPSettings, TrackingProblem, _shift, assemble_qp, make_qp_controller
-from wingopt.control.mpc_backends import BACKENDS, ParametricQP, make_backend
 from wingopt.control.static_optimum import static_fields, static_optimum
 from wingopt.control.tracking import R_DEFAULT, steady_state
 from wingopt.errors import InputError, SolverError
+from wingopt.optim import BACKENDS, ParametricQP, make_backend
+from wingopt.optim.status import SolveStatus
 from wingopt.plate import PlateModel
 from wingopt.problem import load_problem
-from wingopt.solvers import SolveStatus
 
 VMIN, VMAX = -500.0, 1500.0
 SHAPES = ("twist", "camber", "bending")

@@ -25,7 +25,7 @@ from wingopt.estimation.regularization import (
 )
 from wingopt.fe import VALUE, EdgeCondition, SplineBasis1D, TensorSpace, assemble, assemble_mixed, separable
 from wingopt.membrane import MembraneModel, load_case, simulate_response
-from wingopt.solvers import SolveStatus
+from wingopt.optim.status import SolveStatus
 from wingopt.workflows.protocols import simulate_case
 
 SMALL = (13, 7)

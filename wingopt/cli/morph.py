@@ -52,7 +52,10 @@ def register(sub, common) -> None:
     g.add_argument("--r", type=float, help="LQR input weight R = r I, V^-2 (default 1e-14)")
     q = p.add_argument_group("qp")
     q.add_argument("--horizon", type=int, help="prediction horizon, steps")
-    q.add_argument("--solver", help="QP backend: clarabel, osqp, ipopt or casadi-qp")
+    q.add_argument(
+        "--solver",
+        help="QP backend: daqp (default when installed), clarabel (fallback), osqp, piqp, proxqp, ipopt or casadi-qp",
+    )
     q.add_argument("--mode", help="closed-loop (receding horizon) or open-loop")
     q.add_argument("--no-compare", action="store_true", help="qp: skip the saturated-LQR comparison run")
     p.add_argument(

@@ -21,9 +21,10 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from wingopt.control.mpc_backends import ParametricQP, make_backend
 from wingopt.errors import InputError
-from wingopt.solvers import SolveStatus
+from wingopt.optim.qp import ParametricQP
+from wingopt.optim.registry import make_backend
+from wingopt.optim.status import SolveStatus
 
 __all__ = ["StaticOptimum", "static_fields", "static_optimum", "static_qp", "input_weight_absolute", "finite_limits"]
 
@@ -191,7 +192,7 @@ def static_optimum(
     input_weight_si : float, optional
         ``r`` in V^-2 against ``||z - z_d||_M^2`` (kg m^2) instead, the seed LQR's convention.
     backend : str
-        QP backend (:data:`wingopt.control.mpc_backends.BACKENDS`), or ``"direct"`` for the
+        QP backend (:data:`wingopt.optim.registry.BACKENDS`), or ``"direct"`` for the
         unconstrained closed form (only when both limits are ``None``).
     fields : ndarray (n, m), optional
         Precomputed :func:`static_fields`.

@@ -10,7 +10,7 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation.load_space import LoadSpaceKind
-from wingopt.estimation.mhe.solvers import BACKENDS
+from wingopt.estimation.mhe.solvers import BACKENDS, QP_SOLVERS
 from wingopt.estimation.regularization import LambdaRule
 
 __all__ = ["MHESettings", "LOAD_MODELS", "STATE_PRIOR_EVIDENCE", "SIGN_MARGIN"]
@@ -67,7 +67,7 @@ class MHESettings:
         Load basis (:mod:`wingopt.estimation.load_space`).
     backend : {"numpy", "cvxpy", "ipopt"}
         Window solver (:mod:`wingopt.estimation.mhe.solvers`).
-    qp_solver : {"clarabel", "osqp"}
+    qp_solver : {"clarabel", "osqp", "daqp"}
         QP solver of the cvxpy backend.
     regularization : float or None
         Fixed lambda; ``None``: choose it from the data with ``lambda_rule``.
@@ -170,8 +170,8 @@ class MHESettings:
             bad("load_space", "'fixed' or 'free'")
         if self.backend not in BACKENDS:
             bad("backend", " | ".join(BACKENDS))
-        if self.qp_solver not in ("clarabel", "osqp"):
-            bad("qp_solver", "clarabel or osqp")
+        if self.qp_solver not in QP_SOLVERS:
+            bad("qp_solver", " or ".join(QP_SOLVERS))
         if self.regularization is not None and not (np.isfinite(self.regularization) and self.regularization > 0):
             bad("regularization", "a positive number or None (from the data)")
         try:

@@ -1,7 +1,7 @@
 import pytest
 
 from wingopt.errors import SolverError
-from wingopt.solvers import SolveStatus, require_success, status_from
+from wingopt.optim.status import SolveStatus, require_success, status_from
 
 
 @pytest.mark.parametrize(
