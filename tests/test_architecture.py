@@ -19,6 +19,8 @@ ROOT = Path(wingopt.__file__).parent
 ENGINES = ("wingopt.control", "wingopt.estimation")
 """Engines compute; they do not read problem files, write results, draw, or parse arguments."""
 FORBIDDEN_FOR_ENGINES = ("wingopt.results", "wingopt.plots", "wingopt.problem", "wingopt.cli", "wingopt.workflows")
+LAYERS_BELOW_ENGINES = {"wingopt.optim": ("wingopt.control", "wingopt.estimation", *FORBIDDEN_FOR_ENGINES)}
+"""The optimisation layer serves the engines: it imports none of them (nor anything above)."""
 MAX_LINES = 400
 """Modules of control/ and estimation/ own one idea each; none is longer than this."""
 
@@ -158,7 +160,20 @@ def test_engines_do_not_import_the_upper_layers(graph, engine):
     assert bad == []
 
 
-@pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("layer", sorted(LAYERS_BELOW_ENGINES))
+def test_layers_below_the_engines_import_none(graph, layer):
+    forbidden = LAYERS_BELOW_ENGINES[layer]
+    bad = sorted(
+        f"{mod} -> {d}"
+        for mod, deps in graph.items()
+        if mod == layer or mod.startswith(layer + ".")
+        for d in deps
+        if any(d == f or d.startswith(f + ".") for f in forbidden)
+    )
+    assert bad == []
+
+
+@pytest.mark.parametrize("engine", [*ENGINES, *LAYERS_BELOW_ENGINES])
 def test_engine_modules_are_small(engine):
     folder = ROOT / engine.split(".")[1]
     long = {

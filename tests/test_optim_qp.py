@@ -175,23 +175,3 @@ def _imports(path: Path) -> set[str]:
         elif isinstance(node, ast.Import):
             out.update(a.name for a in node.names)
     return out
-
-
-def test_optim_imports_no_engine_and_modules_stay_small():
-    """optim sits below control and estimation: it imports neither (nor results, plots, problem, cli)."""
-    for path in sorted((ROOT / "wingopt" / "optim").glob("*.py")):
-        for mod in _imports(path):
-            assert not mod.startswith(
-                (
-                    "wingopt.control",
-                    "wingopt.estimation",
-                    "wingopt.results",
-                    "wingopt.plots",
-                    "wingopt.problem",
-                    "wingopt.cli",
-                )
-            ), (path.name, mod)
-    files = list((ROOT / "wingopt" / "optim").glob("*.py")) + list((ROOT / "wingopt" / "control").glob("mpc*.py"))
-    files += [ROOT / "wingopt" / "estimation" / f"{name}.py" for name in ("mhe_solvers", "mhe_lm", "mhe_ipopt")]
-    for path in files:
-        assert len(path.read_text().splitlines()) <= 400, path.name

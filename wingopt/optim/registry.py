@@ -12,9 +12,12 @@ from __future__ import annotations
 import importlib
 import importlib.util
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from wingopt.errors import InputError
-from wingopt.optim.qp import ParametricQP, QPBackend
+
+if TYPE_CHECKING:  # type hints only: the backends import the status, which names the registry
+    from wingopt.optim.qp import ParametricQP, QPBackend
 
 __all__ = ["BACKENDS", "BackendInfo", "REGISTRY", "available_backends", "default_backend", "make_backend"]
 
