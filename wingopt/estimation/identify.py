@@ -26,12 +26,19 @@ from wingopt.estimation.protocol import TRUTH_NODES, SimulatedCase
 from wingopt.membrane import MembraneModel
 from wingopt.results import ResultDirectory, write_csv, write_json
 
-__all__ = ["METHODS", "IdentifyRun", "identify", "write_identify_outputs", "LOAD_GRID"]
+__all__ = ["METHODS", "MODELS", "IdentifyRun", "identify", "write_identify_outputs", "LOAD_GRID"]
 
 METHODS = ("mhe", "jekf", "jekf-tuned")
 """``mhe``: moving-horizon estimator; ``jekf``: the seed's filter (200 Pa prior, ``R = 1e-4``,
 lambda tuned on the noise-free truth as the seed did); ``jekf-tuned``: zero initial load, lambda
 from the data."""
+
+MODELS = ("auto", "linear", "nonlinear")
+"""Membrane model of the ``mhe`` method: ``linear`` = the seed protocol's moving-horizon estimator
+(unchanged; an adequacy check is added to its result); ``nonlinear`` = the realistic estimator
+(Berger membrane, prestrain/damping identified, gusts; :mod:`wingopt.estimation.realistic`);
+``auto`` = ``nonlinear`` on measured data and on simulated nonlinear truth, ``linear`` on the
+simulated linear protocol."""
 
 LOAD_GRID = (57, 29)
 """Points (x, y) of the uniform grid of ``load.csv``, edges included."""
@@ -96,6 +103,18 @@ class IdentifyRun:
             out["data"] = self.data_report
         out.update(self.errors())
         out["estimator"] = {k: v for k, v in res.info.items() if k != "iterations_per_window"}
+        # issue 11: adequacy flag, warnings, identified parameters and left-out data at top level
+        out["model"] = res.info.get("model", "linear")
+        out["model_adequate"] = res.info.get("model_adequate")
+        out["warnings"] = list(res.info.get("warnings", []))
+        out["dropped"] = res.info.get("dropped", [])
+        if "adequacy" in res.info:
+            out["chi2_per_datum"] = res.info["adequacy"]["chi2_per_datum"]
+        if "parameters" in res.info:
+            out["parameters"] = res.info["parameters"]
+            out["parameters_std"] = res.info["parameters_std"]
+            if self.case is not None and getattr(self.case, "parameters", None):
+                out["true_parameters"] = self.case.parameters
         return out
 
 
@@ -122,6 +141,12 @@ def identify(
     noise_std: float | None = None,
     mhe_settings=None,
     jekf_modes: int | None = None,
+    model: str = "auto",
+    truth: str = "linear",
+    truth_prestrain: tuple[float, float] | None = None,
+    truth_damping: float = 1.0,
+    gust=None,
+    realistic_settings=None,
 ) -> IdentifyRun:
     """Estimate the load of a membrane problem from a simulated (``load``) or measured (``data``) record.
 
@@ -150,6 +175,14 @@ def identify(
     jekf_modes : int, optional
         Modes kept by the JEKF (default all: exact; 60 is ~20x faster with the same final errors
         to 4 digits on L1–L3, measured).
+    model : {"auto", "linear", "nonlinear"}
+        See :data:`MODELS`.
+    truth : {"linear", "berger"}
+        Simulated truth: the seed's linear membrane, or a Berger (geometrically nonlinear)
+        membrane (:func:`wingopt.estimation.realistic.truth.berger_case`); ``truth_prestrain``
+        ``(ex, ey)``, ``truth_damping`` (factor) and ``gust``
+        (:class:`~wingopt.estimation.realistic.truth.Gust`) put the truth off the problem file.
+    realistic_settings : RealisticSettings, optional
     """
     from wingopt.estimation.csv_data import read_measurements
     from wingopt.estimation.studies import CleanCases, protocol_sign, run_method
@@ -158,18 +191,39 @@ def identify(
         raise InputError(f"problem: identify needs a membrane problem, got kind {getattr(problem, 'kind', None)!r}")
     if method not in METHODS:
         raise InputError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
+    if model not in MODELS:
+        raise InputError(f"model = {model!r}: expected one of {', '.join(MODELS)}")
+    if truth not in ("linear", "berger"):
+        raise InputError(f"truth = {truth!r}: expected linear or berger")
     if (load is None) == (data is None):
         raise InputError("identify: give exactly one of load= (simulated protocol) or data= (measured CSV)")
     if nodes is not None:
         problem = problem.with_mesh(nodes)
-    model = MembraneModel.from_problem(problem)
+    membrane = MembraneModel.from_problem(problem)
     case, report, protocol = None, None, {}
+    off_file = truth != "linear" or truth_prestrain is not None or truth_damping != 1.0 or gust is not None
     if load is not None:
         if not (np.isfinite(noise) and 0 <= noise <= 1):
             raise InputError(f"noise = {noise!r}: expected a fraction of the sensors' peak in [0, 1] (0.01 = 1 %)")
         if not (np.isfinite(t_end) and t_end > 0):
             raise InputError(f"t_end = {t_end!r}: expected a positive duration (s)")
-        case = CleanCases(problem, truth_nodes, t_end).case(load, noise, seed)
+        if off_file or load == "LE":
+            from wingopt.estimation.realistic.truth import berger_case
+
+            case = berger_case(
+                problem,
+                load,
+                noise,
+                seed,
+                truth_prestrain,
+                truth_damping,
+                gust,
+                nodes=tuple(truth_nodes or problem.nodes),
+                nonlinear=truth == "berger",
+                t_end=t_end,
+            )
+        else:
+            case = CleanCases(problem, truth_nodes, t_end).case(load, noise, seed)
         meas = _with_noise_std(case.measurements, noise_std)
         if initial_load is None:
             initial_load = protocol_sign(load) * abs(problem.identification.initial_load)
@@ -179,16 +233,33 @@ def identify(
             "seed": seed,
             "truth_mesh": list(truth_nodes or problem.nodes),
             "protocol": "same-mesh (seed)" if truth_nodes is None else "fine-mesh truth",
+            "truth": truth
+            if not off_file
+            else f"{truth} (prestrain {truth_prestrain}, damping x{truth_damping:g}"
+            + (", gust)" if gust is not None else ")"),
         }
     else:
         meas, csv_report = read_measurements(data, problem.sensor_names)
         report = csv_report.as_dict()
         meas = _with_noise_std(meas, noise_std)
+    if model == "auto":
+        model = "nonlinear" if method == "mhe" and (data is not None or truth == "berger") else "linear"
+    if model == "nonlinear" and method != "mhe":
+        raise InputError(f"model = nonlinear: only with method mhe (got {method!r})")
     name = {"mhe": "mhe", "jekf": "jekf-seed", "jekf-tuned": "jekf-tuned"}[method]
     extra = {} if method == "mhe" or jekf_modes is None else {"modes": jekf_modes}
     t0 = time.perf_counter()
-    result = run_method(name, model, meas, mhe_settings, initial_load=initial_load, truth=case, **extra)
-    return IdentifyRun(problem, model, method, meas, result, time.perf_counter() - t0, case, report, protocol)
+    if model == "nonlinear":
+        from wingopt.estimation.realistic import realistic_identify
+
+        result = realistic_identify(membrane, meas, realistic_settings, initial_load=initial_load)
+    else:
+        result = run_method(name, membrane, meas, mhe_settings, initial_load=initial_load, truth=case, **extra)
+        if method == "mhe":
+            from wingopt.estimation.realistic.mhe_check import check_mhe_result
+
+            result = check_mhe_result(membrane, meas, result)
+    return IdentifyRun(problem, membrane, method, meas, result, time.perf_counter() - t0, case, report, protocol)
 
 
 def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = True) -> Path:
@@ -218,7 +289,7 @@ def _plots(tmp: Path, run: IdentifyRun, X, Y, Pg) -> None:
     result, case = run.result, run.case
     title = f"{run.protocol.get('load_case', 'data')} · {run.method}"
     first = None
-    if result.method == "mhe":
+    if result.method == "mhe" and "window" in result.info:
         first = float(result.t[min(result.info["window"], result.t.size) - 1] - result.t[0])
     plot_load_field(tmp / "load_field.png", X, Y, Pg, None if case is None else case.load(X, Y), title)
     plot_lift(

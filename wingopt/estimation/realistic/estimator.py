@@ -63,7 +63,7 @@ class RealisticSettings:
         Segment length (s) of the misfit report.
     """
 
-    modes: int = 30
+    modes: int = 48
     dynamic: int | None = None
     state_modes: int = 12
     substeps: int = 2

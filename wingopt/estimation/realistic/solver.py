@@ -84,6 +84,7 @@ def levenberg_marquardt(problem, theta0: np.ndarray, max_iter: int = 40, tol: fl
             f1 = float(rd1 @ rd1 + rp1 @ rp1)
             rho = (f - f1) / pred if np.isfinite(f1) else -1.0
             if rho > 0:
+                log.debug("LM %d: cost %.6g -> %.6g (predicted %.3g, mu %.2g)", it, f, f1, pred, mu)
                 theta = theta + step
                 mu *= max(1 / 3, 1 - (2 * rho - 1) ** 3)
                 nu = 2.0
