@@ -6,7 +6,8 @@ called *inadequate* when ``chi2 / (n - p_eff)`` exceeds ``1 + tolerance`` (defau
 noise level estimated from the data is good to a few percent, so the chi-square to ~10 %) or when
 a segment's misfit is improbable at ``SEGMENT_LEVEL`` after a Bonferroni correction. Then the
 band is widened by ``sqrt(chi2 / (n - p_eff))`` (the misfit treated as extra noise of the same
-structure, the usual scale-factor correction), and the result carries a warning. Nothing is
+structure, the usual scale-factor correction; by the worst misfit segment's when that is larger),
+and the result carries a warning. Nothing is
 dropped: segments that do not fit are *reported*, not removed.
 """
 
@@ -78,14 +79,10 @@ def assess(
         if stats.chi2.sf(c, max(k, 1.0)) < SEGMENT_LEVEL / nseg:
             bad.append((float(t[rows][0]), float(t[rows][-1])))
     adequate = per <= 1.0 + tolerance and not bad
+    # An adequate fit keeps its band; a misfit widens it by the worst misfit it shows (a
+    # concentrated misfit, e.g. an unexplained transient, is not diluted by the good samples).
+    worst = max([per] + [c for c, st in zip(seg_chi, seg_t) if any(a <= st <= b for a, b in bad)])
+    inflation = 1.0 if adequate else float(np.sqrt(max(worst, 1.0)))
     return Adequacy(
-        per,
-        n,
-        float(effective_parameters),
-        tuple(seg_t),
-        tuple(seg_chi),
-        tuple(bad),
-        adequate,
-        float(np.sqrt(max(per, 1.0))),
-        tolerance,
+        per, n, float(effective_parameters), tuple(seg_t), tuple(seg_chi), tuple(bad), adequate, inflation, tolerance
     )

@@ -53,7 +53,7 @@ def check_mhe_result(
     for rs in result.info.get("restarts") or []:
         dropped.append({"restart": rs, "reason": "estimate restarted on data inconsistent with it"})
     adequate = ad.adequate and not dropped
-    inflation = float(np.sqrt(max(worst, 1.0))) if not adequate else 1.0
+    inflation = max(ad.inflation, float(np.sqrt(max(worst, 1.0)))) if not adequate else 1.0
     warnings = []
     if not adequate:
         warnings.append(
