@@ -131,6 +131,7 @@ def run_task(task: dict) -> dict:
         out["parameters"], out["parameters_std"], out["true_parameters"] = est, res.info["parameters_std"], truth
         out["parameter_rel_error"] = {k: (est[k] - truth[k]) / truth[k] for k in truth}
         out["load_model"] = res.info["load_model"]
+        out["membrane_selection"] = res.info.get("membrane_selection")
     if task["load"].endswith("+gust"):
         k = np.searchsorted(res.t, 0.1)
         idx = np.searchsorted(clean.trajectory.t, res.t)

@@ -172,7 +172,7 @@ def realistic_identify(
     prior = _prior(problem, s)
     x_mean, x_std, bubble_known = _initial_state_prior(bm, problem, meas.values)
     candidates = {}
-    for kind in ("nonlinear", "linear") if s.membrane == "auto" else (s.membrane,):
+    for i, kind in enumerate(("nonlinear", "linear") if s.membrane == "auto" else (s.membrane,)):
         rp = RecordProblem(
             bm,
             shapes,
@@ -186,7 +186,12 @@ def realistic_identify(
             kind == "nonlinear",
             min(s.state_modes, bm.dynamic),
         )
-        candidates[kind] = (rp, _fit(rp, _scan(rp, np.sign(p0)), s))
+        # the alternative is fitted with few iterations first: it is finished only if it wins
+        cap = s if i == 0 else s.replace(max_iter=min(s.max_iter, 12))
+        candidates[kind] = (rp, _fit(rp, _scan(rp, np.sign(p0)), cap))
+    if len(candidates) == 2 and candidates["linear"][1].cost < candidates["nonlinear"][1].cost:
+        rp, f = candidates["linear"]
+        candidates["linear"] = (rp, _fit(rp, f.theta, s))
     kind = min(candidates, key=lambda k: candidates[k][1].cost)
     rp, fit = candidates[kind]
     selection = {k: {"chi2": f.data_cost, "cost": f.cost} for k, (_, f) in candidates.items()}
