@@ -295,6 +295,10 @@ def _plots(tmp: Path, run: IdentifyRun, X, Y, Pg) -> None:
     plot_lift(
         tmp / "lift.png", result.t, result.lift, result.lift_std, None if case is None else case.true_lift, title, first
     )
+    if "adequacy" in result.info:
+        from wingopt.plots.misfit import plot_misfit
+
+        plot_misfit(tmp / "misfit.png", result.info["adequacy"], title)
     if case is not None:
         # Error histories on a subsample of the times (each needs two integrals on the truth mesh).
         idx = np.unique(np.linspace(0, result.t.size - 1, 41).astype(int))
