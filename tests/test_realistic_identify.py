@@ -13,7 +13,7 @@ import functools
 import numpy as np
 import pytest
 
-from wingopt.estimation.realistic import realistic_identify
+from wingopt.estimation.realistic import RealisticSettings, realistic_identify
 from wingopt.estimation.realistic.mhe_check import check_mhe_result
 from wingopt.estimation.realistic.truth import Gust, berger_case
 from wingopt.estimation.studies import load_field, run_method
@@ -23,25 +23,25 @@ from wingopt.problem import load_problem
 pytestmark = pytest.mark.slow
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _problem_model():
     problem = load_problem("membrane")
     return problem, MembraneModel.from_problem(problem)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _clean(load, nonlinear=True, prestrain=None, damping=1.0, gust=False):
     problem, _ = _problem_model()
     return berger_case(problem, load, 0.0, None, prestrain, damping, Gust() if gust else None, nonlinear=nonlinear)
 
 
-def _run(load, seed=0, noise=0.01, estimator="realistic", **truth):
+def _run(load, seed=0, noise=0.01, estimator="realistic", settings=None, **truth):
     clean = _clean(load, **truth)
     noisy, _ = add_noise(clean.trajectory.outputs, noise, seed)
     meas = dataclasses.replace(clean.measurements, values=noisy, noise_std=None)
     _, model = _problem_model()
     if estimator == "realistic":
-        res = realistic_identify(model, meas)
+        res = realistic_identify(model, meas, settings)
     else:
         res = check_mhe_result(model, meas, run_method("mhe", model, meas))
     lift_err = (res.lift[-1] - clean.lift_history[-1]) / clean.true_absolute_load
@@ -62,15 +62,14 @@ def test_lift_within_3_percent_on_nonlinear_truth_and_field_error_ratio(load):
 def test_prestrain_off_and_damping_x2(factor):
     e0 = 0.05
     prestrain = (factor * e0, (2 - factor) * e0)
-    clean, res, lift_err, _ = _run("L1", prestrain=prestrain, damping=2.0)
+    free = RealisticSettings(free=("prestrain_x", "prestrain_y", "damping"))  # the damping freed too
+    clean, res, lift_err, _ = _run("L1", prestrain=prestrain, damping=2.0, settings=free)
     assert abs(lift_err) < 0.03
     est, std = res.info["parameters"], res.info["parameters_std"]
-    # the well-determined combination: the tension of the first mode, Tx kx1 + Ty ky1 ~ (1 + 4 nu) ex + (4 + nu) ey
-    nu = 0.36
-    comb = lambda ex, ey: (1 + 4 * nu) * ex + (4 + nu) * ey  # noqa: E731
-    assert abs(comb(est["prestrain_x"], est["prestrain_y"]) / comb(*prestrain) - 1) < 0.03
     for k, true in zip(("prestrain_x", "prestrain_y"), prestrain):
-        assert abs(est[k] - true) < 3 * std[k]  # the band is honest for each
+        assert abs(est[k] / true - 1) < 0.03  # measured: -2.9 % / +0.1 % (factor 0.8)
+        assert abs(est[k] - true) < 3 * std[k]
+    assert abs(est["damping"] / 2.0 - 1) < 0.03
     assert res.info["model_adequate"]
 
 
