@@ -64,7 +64,7 @@ class IdentificationSettings:
     initial_load: float = 200.0
     noise_std: tuple[float, ...] | None = None
     initial_deflection: float = 0.0
-    free_parameters: tuple[str, ...] = ("prestrain_x", "prestrain_y")
+    free_parameters: tuple[str, ...] = ("prestrain_x", "prestrain_y", "damping")
     prestrain_prior_rel: float = 0.2
     damping_prior_rel: float = 1.0
 
@@ -144,7 +144,7 @@ def from_table(root: Table, name: str) -> MembraneProblem:
     if initial_load == 0:
         raise ident.error("initial_load", initial_load, "a non-zero pressure (its sign fixes the sign of the estimate)")
     initial_deflection = ident.number("initial_deflection", 0.0, unit="m")
-    free = ident.peek("free_parameters", ["prestrain_x", "prestrain_y"])
+    free = ident.peek("free_parameters", ["prestrain_x", "prestrain_y", "damping"])
     if not isinstance(free, list) or any(not isinstance(n, str) or n not in FREE_PARAMETERS for n in free):
         raise ident.error("free_parameters", free, f"a list of names among {', '.join(FREE_PARAMETERS)}")
     ident._take("free_parameters", None, "")

@@ -99,7 +99,7 @@ class RealisticSettings:
 def _prior(problem, s: RealisticSettings) -> ParameterPrior:
     ident = problem.identification
     e0 = problem.material.prestrain
-    free = s.free if s.free is not None else getattr(ident, "free_parameters", ("prestrain_x", "prestrain_y"))
+    free = s.free if s.free is not None else getattr(ident, "free_parameters", PARAMETERS)
     rel = s.prestrain_rel if s.prestrain_rel is not None else getattr(ident, "prestrain_prior_rel", 0.2)
     drel = s.damping_rel if s.damping_rel is not None else getattr(ident, "damping_prior_rel", 1.0)
     return ParameterPrior((e0, e0), tuple(free), rel, 1.0, drel)

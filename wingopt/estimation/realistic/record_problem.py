@@ -44,7 +44,7 @@ class ParameterPrior:
     """
 
     prestrain: tuple[float, float]
-    free: tuple[str, ...] = ("prestrain_x", "prestrain_y")
+    free: tuple[str, ...] = PARAMETERS
     prestrain_rel: float = 0.2
     damping: float = 1.0
     damping_rel: float = 1.0
