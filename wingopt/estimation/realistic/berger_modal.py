@@ -96,6 +96,7 @@ class BergerModal:
     substeps: int = 1
     dynamic: int = 0
     scheme: str = "midpoint"
+    stretch_gain: float = 1.0
 
     @classmethod
     def build(
@@ -106,11 +107,14 @@ class BergerModal:
         substeps: int = 1,
         dynamic: int | None = None,
         scheme: str = "midpoint",
+        stretch_gain: float = 1.0,
     ) -> BergerModal:
         """Modes of ``model``'s space (``modes`` lowest at the nominal isotropic prestress), the lowest
         ``dynamic`` of them (default all) integrated, the others quasi-static. ``scheme``: the
         tension over a step, ``"midpoint"`` (predictor-corrector, two oscillator steps) or
-        ``"extrapolated"`` (``1.5 T_k - 0.5 T_{k-1}``, one oscillator step; both second order)."""
+        ``"extrapolated"`` (``1.5 T_k - 0.5 T_{k-1}``, one oscillator step; both second order).
+        ``stretch_gain`` multiplies the deflection's own stretch (1: Berger; about 1.45 matches the
+        Föppl–von Kármán membrane's mean stiffening at 200 Pa, docs/membrane_nonlinear.md §4)."""
         n = model.n
         if not 1 <= modes <= n:
             raise InputError(f"modes = {modes}: expected 1..{n} for this mesh")
@@ -136,7 +140,9 @@ class BergerModal:
             raise InputError(f"dynamic modes = {dynamic}: expected 1..{modes}")
         if scheme not in ("midpoint", "extrapolated"):
             raise InputError(f"scheme = {scheme!r}: expected 'midpoint' or 'extrapolated'")
-        return cls(model, Phi, kx, ky, Chat, B, dt, int(substeps), dynamic, scheme)
+        if not (np.isfinite(stretch_gain) and stretch_gain >= 0):
+            raise InputError(f"stretch_gain = {stretch_gain!r}: expected a non-negative number")
+        return cls(model, Phi, kx, ky, Chat, B, dt, int(substeps), dynamic, scheme, float(stretch_gain))
 
     # -- sizes and constants ---------------------------------------------------------------
     @property
@@ -225,7 +231,7 @@ class BergerModal:
         nu = self.model.problem.material.poisson_ratio
         C = self.stiffness_c
         ia = 1.0 / (2.0 * self.area)
-        on = 1.0 if nonlinear else 0.0
+        on = self.stretch_gain if nonlinear else 0.0
         # k_j = Tx kx_j + Ty ky_j with Tx, Ty linear in the strains: k = k0 + Sx * kxs + Sy * kys
         k0 = C * ((exb + nu * eyb) * self.kx + (eyb + nu * exb) * self.ky)
         kxs = on * C * ia * (self.kx + nu * self.ky)

@@ -76,7 +76,7 @@ def simulate_tangent(bm, q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforce
     mat = bm.model.problem.material
     nu, C, h = mat.poisson_ratio, bm.stiffness_c, bm.dt / bm.substeps
     kx, ky = bm.kx, bm.ky
-    on = 1.0 if nonlinear else 0.0
+    on = bm.stretch_gain if nonlinear else 0.0
     ia = 1.0 / (2.0 * bm.area)
     k0 = C * ((ex + nu * ey) * kx + (ey + nu * ex) * ky)
     k0x, k0y = C * (kx + nu * ky), C * (ky + nu * kx)
