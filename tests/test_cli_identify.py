@@ -106,7 +106,7 @@ def test_identify_from_csv_with_missing_rows_and_gaps(record, small_file, tmp_pa
     data = tmp_path / "tunnel.csv"
     write_csv(data, meas.t[keep], vals[keep], problem.sensor_names, extra=("balance_N", "0.8"))
     out = tmp_path / "csvrun"
-    argv = ["identify", str(small_file), "--data", str(data), "--out", str(out), "--json"]
+    argv = ["identify", str(small_file), "--data", str(data), "--out", str(out), "--json", "--model", "linear"]
     assert main(argv + FAST[:6]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["data"]["missing_rows"] == 10 and summary["data"]["gap_rows_filled"] == 5
@@ -238,7 +238,7 @@ def test_data_at_another_sample_rate(small_file, tmp_path, capsys):
     write_csv(data, traj.t, y, problem.sensor_names)
     out = tmp_path / "dic"
     argv = ["identify", str(small_file), "--data", str(data), "--out", str(out), "--json", "--no-plots"]
-    assert main(argv + ["--window", "60", "--stride", "20", "--modes", "20"]) == 0
+    assert main(argv + ["--window", "60", "--stride", "20", "--modes", "20", "--model", "linear"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["data"]["dt_s"] == pytest.approx(1 / 300, rel=1e-3)  # times written to 1 us
     assert summary["lift_N"] == pytest.approx(truth.lift(truth.project(load_case("L1", 0.14, 0.07))), rel=0.03)
@@ -286,3 +286,24 @@ def test_state_prior_option():
     for bad in ("-1", "tight", "nan"):
         with pytest.raises(InputError, match="state-prior"):
             state_prior_settings(bad)
+
+
+def test_identify_data_defaults_to_the_nonlinear_model(record, small_file, tmp_path, capsys):
+    """``--data`` without method flags: the realistic estimator (prestrain identified, the membrane
+    model chosen by the chi-square: here linear, as the record is from the linear model)."""
+    problem, case = record
+    data = tmp_path / "lin.csv"
+    write_csv(data, case.measurements.t, case.measurements.values, problem.sensor_names)
+    out = tmp_path / "nl"
+    assert main(["identify", str(small_file), "--data", str(data), "--out", str(out), "--json", "--no-plots"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["method"] == "mhe" and summary["estimator"]["backend"].startswith("realistic")
+    assert summary["estimator"]["membrane_selection"]["chosen"] == "linear" and summary["model"] == "linear"
+    assert summary["dropped"] == []
+    assert set(summary["parameters"]) == {"prestrain_x", "prestrain_y", "damping"}
+    # linear truth on 25x13, estimator on the coarse 13x7 mesh: the lift within 3 % ...
+    assert summary["lift_N"] == pytest.approx(case.true_lift, rel=0.03)
+    # ... a flagged record says so and widens its band at least by sqrt(chi-square per datum)
+    ad = summary["estimator"]["adequacy"]
+    if not summary["model_adequate"]:
+        assert summary["warnings"] and ad["band_inflation"] >= np.sqrt(summary["chi2_per_datum"]) - 1e-12

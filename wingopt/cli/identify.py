@@ -29,9 +29,12 @@ examples:
   wingopt identify membrane --load L1 --noise 1 --seed 0 --method mhe --out runs/L1
   wingopt identify membrane --load L3 --noise 5 --seed 2 --load-space free --out runs/L3free
   wingopt identify membrane --load L2 --noise 1 --seed 0 --method jekf --out runs/L2jekf
-  wingopt identify membrane --data wind_tunnel.csv --out runs/tunnel --json
+  wingopt identify membrane --data wind_tunnel.csv --out runs/tunnel --json      # nonlinear model (default on data)
   wingopt identify membrane --follow daq.csv --print-every 100 --idle-timeout 5 --out runs/live
   daq_reader | wingopt identify membrane --data - --out runs/live
+  wingopt identify membrane --data wind_tunnel.csv --model linear --out runs/lin   # the seed's linear MHE
+  wingopt identify membrane --load LE --truth berger --truth-prestrain 0.06 0.04 --out runs/real
+  wingopt identify membrane --load L1 --truth berger --gust --out runs/gust
   wingopt identify membrane --data gusty.csv --load-model random_walk --load-timescale 0.5 --out runs/gust
   (CSV: header 't,S1,S2,S3,S4', time in s, dimensionless stretch; empty cells = missing samples)"""
 
@@ -71,7 +74,9 @@ def register(sub, common) -> None:
     )
     p.add_argument("problem", help="problem file (.toml) or built-in name (membrane)")
     src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--load", choices=("L1", "L2", "L3", "consistency"), help="simulate this load case")
+    src.add_argument(
+        "--load", choices=("L1", "L2", "L3", "consistency", "LE"), help="simulate this load case (LE: leading edge)"
+    )
     src.add_argument(
         "--data", metavar="FILE.csv", help="measured series: t column + one column per sensor ('-': stream from stdin)"
     )
@@ -92,6 +97,19 @@ def register(sub, common) -> None:
         "noise-free truth as the seed did, a default lambda on measured data); jekf-tuned = zero initial load, "
         "lambda from the data",
     )
+    p.add_argument(
+        "--model",
+        choices=("auto", "linear", "nonlinear"),
+        default="auto",
+        help="membrane model of --method mhe: nonlinear = Berger membrane with prestrain (and damping) identified, "
+        "gusts followed, model-adequacy flag; linear = the seed's linear MHE (unchanged); auto (default): "
+        "nonlinear on --data and --truth berger, linear on the simulated linear protocol",
+    )
+    t = p.add_argument_group("simulated truth (--load)")
+    t.add_argument("--truth", choices=("linear", "berger"), default="linear", help="truth membrane (default linear)")
+    t.add_argument("--truth-prestrain", nargs=2, type=float, metavar=("EX", "EY"), help="truth prestrain (file's)")
+    t.add_argument("--truth-damping", type=float, default=1.0, help="truth damping factor (default 1)")
+    t.add_argument("--gust", action="store_true", help="1-cos gust on the load: +60 %% over 0.2 s from t = 0.4 s")
     g = p.add_argument_group("moving-horizon estimator")
     g.add_argument("--backend", choices=("numpy", "cvxpy", "ipopt"), default="numpy", help="window solver")
     g.add_argument("--qp-solver", choices=("clarabel", "osqp"), default="clarabel", help="QP solver of cvxpy")
@@ -237,6 +255,11 @@ def run(args) -> int:
         mhe_settings=settings,
         lam=None if args.lam is None and args.lambda_rule is None else LambdaChoice(args.lam, args.lambda_rule),
         max_memory=parse_size(args.max_memory) if args.max_memory else None,
+        model=args.model,
+        truth=args.truth,
+        truth_prestrain=tuple(args.truth_prestrain) if args.truth_prestrain else None,
+        truth_damping=args.truth_damping,
+        gust=_gust() if args.gust else None,
     )
     write_identify_outputs(run_, args.out, plots=not args.no_plots)
     summary = to_jsonable(run_.summary())
@@ -249,6 +272,12 @@ def print_warnings(command: str, summary: dict) -> None:
     """The summary's ``warnings``, one line each on stderr."""
     for w in summary.get("warnings", []):
         print(f"wingopt {command}: warning: {w}", file=sys.stderr)
+
+
+def _gust():
+    from wingopt.workflows.realistic_truth import ISSUE_GUST
+
+    return ISSUE_GUST
 
 
 def _print(summary: dict, args) -> None:
@@ -265,3 +294,5 @@ def _print(summary: dict, args) -> None:
         )
     line += f", {summary['wall_s']:.2f} s -> {args.out}"
     print(line)
+    for w in summary.get("warnings", []):
+        print(f"warning: {w}")

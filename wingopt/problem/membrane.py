@@ -53,12 +53,24 @@ class IdentificationSettings:
     from the data. ``initial_deflection`` is the peak (m) of the prior initial shape
     ``16 xi (1 - xi) eta (1 - eta)`` (the protocol's 1 cm bubble); ``0`` means unknown. With it,
     the estimators also fix the sign of loads without net lift (L2).
+
+    Model parameters the nonlinear estimator identifies (spec §8): ``free_parameters`` (some of
+    ``prestrain_x``, ``prestrain_y``, ``damping``), the prestrain prior's relative std
+    ``prestrain_prior_rel`` (mean: ``[material] prestrain``) and the damping factor's
+    (log-normal, std ``log(1 + damping_prior_rel)``, mean 1).
     """
 
     dt: float = 1.0e-3
     initial_load: float = 200.0
     noise_std: tuple[float, ...] | None = None
     initial_deflection: float = 0.0
+    free_parameters: tuple[str, ...] = ("prestrain_x", "prestrain_y", "damping")
+    prestrain_prior_rel: float = 0.2
+    damping_prior_rel: float = 1.0
+
+
+FREE_PARAMETERS = ("prestrain_x", "prestrain_y", "damping")
+"""Names allowed in ``[identification] free_parameters``."""
 
 
 @dataclass(frozen=True)
@@ -136,6 +148,12 @@ def from_table(root: Table, name: str) -> MembraneProblem:
     if initial_load == 0:
         raise ident.error("initial_load", initial_load, "a non-zero pressure (its sign fixes the sign of the estimate)")
     initial_deflection = ident.number("initial_deflection", 0.0, unit="m")
+    free = ident.peek("free_parameters", ["prestrain_x", "prestrain_y", "damping"])
+    if not isinstance(free, list) or any(not isinstance(n, str) or n not in FREE_PARAMETERS for n in free):
+        raise ident.error("free_parameters", free, f"a list of names among {', '.join(FREE_PARAMETERS)}")
+    ident._take("free_parameters", None, "")
+    prestrain_rel = ident.number("prestrain_prior_rel", 0.2, positive=True)
+    damping_rel = ident.number("damping_prior_rel", 1.0, positive=True)
     noise = None
     if ident.has("noise_std"):
         if isinstance(ident.peek("noise_std"), list):
@@ -151,7 +169,13 @@ def from_table(root: Table, name: str) -> MembraneProblem:
         nodes=nodes,
         sensors=tuple(sensors),
         identification=IdentificationSettings(
-            dt=dt, initial_load=initial_load, noise_std=noise, initial_deflection=initial_deflection
+            dt=dt,
+            initial_load=initial_load,
+            noise_std=noise,
+            initial_deflection=initial_deflection,
+            free_parameters=tuple(dict.fromkeys(free)),
+            prestrain_prior_rel=prestrain_rel,
+            damping_prior_rel=damping_rel,
         ),
         name=name,
         source=root.source,

@@ -31,12 +31,19 @@ from wingopt.validate import check_seed
 from wingopt.values import LambdaChoice, NoiseLevel
 from wingopt.workflows.protocols import TRUTH_NODES, SimulatedCase
 
-__all__ = ["METHODS", "IdentifyRun", "identify", "write_identify_outputs", "LOAD_GRID"]
+__all__ = ["METHODS", "MODELS", "IdentifyRun", "identify", "write_identify_outputs", "LOAD_GRID"]
 
 METHODS = ("mhe", "jekf", "jekf-tuned")
 """``mhe``: moving-horizon estimator; ``jekf``: the seed's filter (200 Pa prior, ``R = 1e-4``,
 lambda tuned on the noise-free truth as the seed did); ``jekf-tuned``: zero initial load, lambda
 from the data."""
+
+MODELS = ("auto", "linear", "nonlinear")
+"""Membrane model of the ``mhe`` method: ``linear`` = the seed protocol's moving-horizon estimator
+(unchanged; an adequacy check is added to its result); ``nonlinear`` = the realistic estimator
+(Berger membrane, prestrain/damping identified, gusts; :mod:`wingopt.estimation.realistic`);
+``auto`` = ``nonlinear`` on measured data and on simulated nonlinear truth, ``linear`` on the
+simulated linear protocol."""
 
 LOAD_GRID = (57, 29)
 """Points (x, y) of the uniform grid of ``load.csv``, edges included."""
@@ -103,6 +110,18 @@ class IdentifyRun:
             out["data"] = self.data_report
         out.update(self.errors())
         out["estimator"] = {k: v for k, v in res.info.items() if k != "iterations_per_window"}
+        # issue 11: adequacy flag, warnings, identified parameters and left-out data at top level
+        out["model"] = res.info.get("model", "linear")
+        out["model_adequate"] = res.info.get("model_adequate")
+        out["warnings"] = list(res.info.get("warnings", []))
+        out["dropped"] = res.info.get("dropped", [])
+        if "adequacy" in res.info:
+            out["chi2_per_datum"] = res.info["adequacy"]["chi2_per_datum"]
+        if "parameters" in res.info:
+            out["parameters"] = res.info["parameters"]
+            out["parameters_std"] = res.info["parameters_std"]
+            if self.case is not None and getattr(self.case, "parameters", None):
+                out["true_parameters"] = self.case.parameters
         return out
 
 
@@ -131,6 +150,12 @@ def identify(
     jekf_modes: int | None = None,
     lam: LambdaChoice | None = None,
     max_memory: float | None = None,
+    model: str = "auto",
+    truth: str = "linear",
+    truth_prestrain: tuple[float, float] | None = None,
+    truth_damping: float = 1.0,
+    gust=None,
+    realistic_settings=None,
 ) -> IdentifyRun:
     """Estimate the load of a membrane problem from a simulated (``load``) or measured (``data``) record.
 
@@ -163,6 +188,14 @@ def identify(
     jekf_modes : int, optional
         Modes kept by the JEKF (default all: exact; 60 is ~20x faster with the same final errors
         to 4 digits on L1–L3, measured).
+    model : {"auto", "linear", "nonlinear"}
+        See :data:`MODELS`.
+    truth : {"linear", "berger"}
+        Simulated truth: the seed's linear membrane, or a Berger (geometrically nonlinear)
+        membrane (:func:`wingopt.workflows.realistic_truth.berger_case`); ``truth_prestrain``
+        ``(ex, ey)``, ``truth_damping`` (factor) and ``gust``
+        (:class:`~wingopt.workflows.realistic_truth.Gust`) put the truth off the problem file.
+    realistic_settings : RealisticSettings, optional
     lam : LambdaChoice, optional
         A fixed lambda or a rule of :mod:`wingopt.estimation.lambda_rules` for ``method``; default:
         the method's own (for the MHE, what ``mhe_settings`` says).
@@ -190,23 +223,46 @@ def identify(
         raise InputError(
             f"initial_load = {initial_load!r}: expected a non-zero pressure (Pa); its sign fixes the load's"
         )
+    if model not in MODELS:
+        raise InputError(f"model = {model!r}: expected one of {', '.join(MODELS)}")
+    if truth not in ("linear", "berger"):
+        raise InputError(f"truth = {truth!r}: expected linear or berger")
     if (load is None) == (data is None):
         raise InputError("identify: give exactly one of load= (simulated protocol) or data= (measured CSV)")
     mhe_settings, extra = _lambda_options(method, lam, mhe_settings)
     if nodes is not None:
         problem = problem.with_mesh(nodes)
-    samples, truth = 1, None
+    samples, truth_mesh = 1, None
     if load is not None:
         noise = NoiseLevel(noise).fraction
         if not (np.isfinite(t_end) and t_end > 0):
             raise InputError(f"t_end = {t_end!r}: expected a positive duration (s)")
         sanity.check_duration(t_end, problem.identification.dt)
-        samples, truth = int(round(t_end / problem.identification.dt)) + 1, truth_nodes or problem.nodes
-    resources.check(resources.estimate_identify(problem.nodes, samples, truth_nodes=truth, method=method), max_memory)
-    model = MembraneModel.from_problem(problem)
+        samples, truth_mesh = int(round(t_end / problem.identification.dt)) + 1, truth_nodes or problem.nodes
+    resources.check(
+        resources.estimate_identify(problem.nodes, samples, truth_nodes=truth_mesh, method=method), max_memory
+    )
+    membrane = MembraneModel.from_problem(problem)
     case, report, protocol = None, None, {}
+    off_file = truth != "linear" or truth_prestrain is not None or truth_damping != 1.0 or gust is not None
     if load is not None:
-        case = CleanCases(problem, truth_nodes, t_end).case(load, noise, seed)
+        if off_file or load == "LE":
+            from wingopt.workflows.realistic_truth import berger_case
+
+            case = berger_case(
+                problem,
+                load,
+                noise,
+                seed,
+                truth_prestrain,
+                truth_damping,
+                gust,
+                nodes=tuple(truth_nodes or problem.nodes),
+                nonlinear=truth == "berger",
+                t_end=t_end,
+            )
+        else:
+            case = CleanCases(problem, truth_nodes, t_end).case(load, noise, seed)
         meas = _with_noise_std(case.measurements, noise_std)
         if initial_load is None:
             initial_load = protocol_sign(load) * abs(problem.identification.initial_load)
@@ -216,6 +272,10 @@ def identify(
             "seed": seed,
             "truth_mesh": list(truth_nodes or problem.nodes),
             "protocol": "same-mesh (seed)" if truth_nodes is None else "fine-mesh truth",
+            "truth": truth
+            if not off_file
+            else f"{truth} (prestrain {truth_prestrain}, damping x{truth_damping:g}"
+            + (", gust)" if gust is not None else ")"),
         }
     elif isinstance(data, (str, Path)):
         if Path(data).is_dir():
@@ -228,15 +288,28 @@ def identify(
     if load is None:
         resources.check(resources.estimate_identify(problem.nodes, meas.count, method=method), max_memory)
     prior = initial_load if initial_load is not None else problem.identification.initial_load
-    warnings = sanity.record_checks(model, meas, prior)
+    warnings = sanity.record_checks(membrane, meas, prior)
+    if model == "auto":
+        model = "nonlinear" if method == "mhe" and (data is not None or truth == "berger") else "linear"
+    if model == "nonlinear" and method != "mhe":
+        raise InputError(f"model = nonlinear: only with method mhe (got {method!r})")
     name = {"mhe": "mhe", "jekf": "jekf-seed", "jekf-tuned": "jekf-tuned"}[method]
     if method != "mhe" and jekf_modes is not None:
         extra["modes"] = jekf_modes
     t0 = time.perf_counter()
-    result = run_method(name, model, meas, mhe_settings, initial_load=initial_load, truth=case, **extra)
+    if model == "nonlinear":
+        from wingopt.estimation.realistic import realistic_identify
+
+        result = realistic_identify(membrane, meas, realistic_settings, initial_load=initial_load)
+    else:
+        result = run_method(name, membrane, meas, mhe_settings, initial_load=initial_load, truth=case, **extra)
+        if method == "mhe":
+            from wingopt.estimation.realistic.mhe_check import check_mhe_result
+
+            result = check_mhe_result(membrane, meas, result)
     wall = time.perf_counter() - t0
-    warnings += sanity.fit_checks(model, meas, result, sanity_sigma(meas, result))
-    return IdentifyRun(problem, model, method, meas, result, wall, case, report, protocol, warnings)
+    warnings += sanity.fit_checks(membrane, meas, result, sanity_sigma(meas, result))
+    return IdentifyRun(problem, membrane, method, meas, result, wall, case, report, protocol, warnings)
 
 
 def sanity_sigma(meas: Measurements, result: IdentificationResult):
@@ -312,12 +385,16 @@ def _plots(tmp: Path, run: IdentifyRun, X, Y, Pg) -> None:
     result, case = run.result, run.case
     title = f"{run.protocol.get('load_case', 'data')} · {run.method}"
     first = None
-    if result.method == "mhe":
+    if result.method == "mhe" and "window" in result.info:
         first = float(result.t[min(result.info["window"], result.t.size) - 1] - result.t[0])
     plot_load_field(tmp / "load_field.png", X, Y, Pg, None if case is None else case.load(X, Y), title)
     plot_lift(
         tmp / "lift.png", result.t, result.lift, result.lift_std, None if case is None else case.true_lift, title, first
     )
+    if "adequacy" in result.info:
+        from wingopt.plots.misfit import plot_misfit
+
+        plot_misfit(tmp / "misfit.png", result.info["adequacy"], title)
     if case is not None:
         # Error histories on a subsample of the times (each needs two integrals on the truth mesh).
         idx = np.unique(np.linspace(0, result.t.size - 1, 41).astype(int))

@@ -1,0 +1,128 @@
+"""Load model of the realistic estimator: a smooth shape with a gust-following amplitude.
+
+``P(x, y, t) = (1 + g(t)) * sum_s c_s psi_s(x, y)``:
+
+* **shape** ``c``: coefficients on the ``count`` smoothest load shapes ``psi_s`` (generalised
+  eigenvectors of ``(Lam, Gram)``, ``Lam psi = mu psi``, L2-normalised, zero on the edges), with
+  the Gaussian smoothness prior ``c_s ~ N(0, (kappa |P0| sqrt(A) (mu_1 / mu_s)^power)^2)``: a load
+  as rough as the ``s``-th shape is expected ``(mu_s / mu_1)^power`` times smaller than the prior
+  pressure ``P0`` (the problem's ``initial_load``; ``power = 1`` is the seed's ``f^T Lam f``
+  regulariser with a fixed weight). This prior is fixed before any data are seen and enters
+  the band;
+* **amplitude** ``g(t)``: piecewise linear on knots ``knot_s`` apart (seconds), prior ``g ~ N(0,
+  level^2)`` per knot plus a second-difference (acceleration) prior of ``accel`` (1/s^2, relative to
+  the steady load): the lift may change within tens of ms while the shape stays. ``g`` is off for a
+  constant load.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from wingopt.errors import InputError
+from wingopt.membrane import MembraneModel
+
+__all__ = ["LoadShapes", "GustAmplitude"]
+
+
+@dataclass(frozen=True, eq=False)
+class LoadShapes:
+    """The smoothest load shapes of a model's deflection basis and their prior.
+
+    Attributes
+    ----------
+    shapes : ndarray ``(n, count)``
+        Load coefficients of each shape (``∫ psi_s^2 = 1``).
+    mu : ndarray ``(count,)``
+        Roughness ``∫ (psi_xx^2 + psi_yy^2)``.
+    prior_std : ndarray ``(count,)``
+        Prior standard deviation of each coefficient (Pa m).
+    lift_row : ndarray ``(count,)``
+        ``∫ psi_s``: lift = ``lift_row @ c``.
+    """
+
+    shapes: np.ndarray
+    mu: np.ndarray
+    prior_std: np.ndarray
+    lift_row: np.ndarray
+
+    @classmethod
+    def build(
+        cls, model: MembraneModel, count: int = 15, pressure: float = 200.0, kappa: float = 1.0, power: float = 1.0
+    ) -> LoadShapes:
+        """``count`` smoothest shapes; ``pressure`` the prior pressure scale (Pa), ``kappa`` its factor,
+        ``power`` the decay of the prior std with roughness, ``(mu_1/mu_s)^power``."""
+        if not 1 <= count <= model.n:
+            raise InputError(f"load shapes = {count}: expected 1..{model.n}")
+        if not (np.isfinite(pressure) and pressure != 0 and kappa > 0):
+            raise InputError(f"load prior: pressure {pressure!r} and kappa {kappa!r} must be non-zero and positive")
+        mu, vecs = sla.eigh(model.regularizer.toarray(), model.gram.toarray(), subset_by_index=(0, count - 1))
+        area = model.problem.width * model.problem.height
+        std = kappa * abs(pressure) * np.sqrt(area) * (mu[0] / mu) ** power
+        lift = vecs.T @ model.basis_integrals
+        # Orientation: a positive first coefficient means a positive mean pressure.
+        sign = np.where(lift < 0, -1.0, 1.0)
+        return cls(vecs * sign, mu, std, lift * sign)
+
+    @property
+    def count(self) -> int:
+        return self.mu.size
+
+    def coefficients(self, c: np.ndarray) -> np.ndarray:
+        """Load coefficients (deflection basis) of shape coefficients ``c`` (``(..., count)``)."""
+        return np.asarray(c) @ self.shapes.T
+
+    def fit(self, model: MembraneModel, f: np.ndarray) -> np.ndarray:
+        """Shape coefficients of the Gram projection of load coefficients ``f``."""
+        return self.shapes.T @ (model.gram @ f)
+
+
+@dataclass(frozen=True)
+class GustAmplitude:
+    """Piecewise-linear relative amplitude ``g(t)`` on knots ``knot_s`` apart.
+
+    ``accel`` (1/s^2): prior std of the second derivative of ``g`` (a 1-cos gust of relative
+    size ``a`` and duration ``T`` has ``a/2 (2 pi / T)^2``: 300 for +60 % over 0.2 s); ``level``:
+    prior std of ``g`` itself (it only removes the trade-off between ``g`` and the shape's size).
+    """
+
+    knot_s: float = 0.01
+    accel: float = 300.0
+    level: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("knot_s", "accel", "level"):
+            val = getattr(self, name)
+            if not (np.isfinite(val) and val > 0):
+                raise InputError(f"gust {name} = {val!r}: expected a positive number")
+
+    def knots(self, t: np.ndarray) -> np.ndarray:
+        """Knot times covering ``t`` (first and last sample included)."""
+        n = max(int(np.ceil((t[-1] - t[0]) / self.knot_s - 1e-9)), 1)
+        return t[0] + np.arange(n + 1) * ((t[-1] - t[0]) / n)
+
+    def basis(self, t: np.ndarray) -> np.ndarray:
+        """Hat functions ``(len(t), n_knots)``: ``g(t_k) = H[k] @ g_knots``."""
+        kn = self.knots(t)
+        H = np.zeros((t.size, kn.size))
+        j = np.clip(np.searchsorted(kn, t, side="right") - 1, 0, kn.size - 2)
+        w = (t - kn[j]) / (kn[j + 1] - kn[j])
+        H[np.arange(t.size), j] = 1 - w
+        H[np.arange(t.size), j + 1] += w
+        return H
+
+    def prior_rows(self, t: np.ndarray) -> np.ndarray:
+        """Rows ``R`` of the prior ``|R g|^2`` (level rows and second-difference rows)."""
+        kn = self.knots(t)
+        n, h = kn.size, kn[1] - kn[0]
+        rows = [np.eye(n) / self.level]
+        if n >= 3:
+            D = np.zeros((n - 2, n))
+            idx = np.arange(n - 2)
+            D[idx, idx], D[idx, idx + 1], D[idx, idx + 2] = 1.0, -2.0, 1.0
+            # (g_{j+1} - 2 g_j + g_{j-1}) / h^2 ~ g'', prior std accel
+            rows.append(D / (self.accel * h * h))
+        return np.vstack(rows)

@@ -1,0 +1,34 @@
+"""Misfit figure of an identification: chi-square per datum per segment, the tolerance, flagged spans."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from wingopt.plots import pyplot as _pyplot
+from wingopt.plots import save as _save
+
+__all__ = ["plot_misfit"]
+
+
+def plot_misfit(path: Path, adequacy: dict, title: str = "") -> Path:
+    """Bar per segment of ``adequacy`` (:meth:`Adequacy.as_dict`), red where the data contradict the model."""
+    plt = _pyplot()
+    t = np.asarray(adequacy["segments_t_s"], dtype=float)
+    chi = np.asarray(adequacy["segments_chi2_per_datum"], dtype=float)
+    width = float(np.median(np.diff(t))) if t.size > 1 else 0.05
+    fig, ax = plt.subplots(figsize=(6.4, 3.0))
+    ax.bar(t, chi, width=0.9 * width, align="edge", color="C0", label="chi-square per datum")
+    for a, b in adequacy["misfit_segments_s"]:
+        ax.axvspan(a, b, color="C3", alpha=0.3)
+    ax.axhline(1.0, color="k", lw=1)
+    ax.axhline(1.0 + adequacy["tolerance"], color="k", ls="--", lw=1, label="tolerance")
+    ax.set_yscale("log")
+    ax.set_xlabel("t (s)")
+    ax.set_ylabel("chi-square / datum")
+    verdict = "adequate" if adequacy["model_adequate"] else f"INADEQUATE, band x{adequacy['band_inflation']:.2f}"
+    ax.set_title(f"{title} · model {verdict}" if title else f"model {verdict}")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(loc="best")
+    return _save(fig, path)
