@@ -288,14 +288,15 @@ def test_state_prior_option():
             state_prior_settings(bad)
 
 
-def test_identify_data_defaults_to_the_nonlinear_model(record, small_file, tmp_path, capsys):
-    """``--data`` without method flags: the realistic estimator (prestrain identified, the membrane
+def test_identify_data_with_the_nonlinear_model(record, small_file, tmp_path, capsys):
+    """``--data --model nonlinear``: the realistic estimator (prestrain identified, the membrane
     model chosen by the chi-square: here linear, as the record is from the linear model)."""
     problem, case = record
     data = tmp_path / "lin.csv"
     write_csv(data, case.measurements.t, case.measurements.values, problem.sensor_names)
     out = tmp_path / "nl"
-    assert main(["identify", str(small_file), "--data", str(data), "--out", str(out), "--json", "--no-plots"]) == 0
+    argv = ["identify", str(small_file), "--data", str(data), "--model", "nonlinear", "--out", str(out)]
+    assert main(argv + ["--json", "--no-plots"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["method"] == "mhe" and summary["estimator"]["backend"].startswith("realistic")
     assert summary["estimator"]["membrane_selection"]["chosen"] == "linear" and summary["model"] == "linear"

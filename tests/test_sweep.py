@@ -190,7 +190,7 @@ def test_a_torn_last_line_is_ignored_with_a_warning_and_cut_before_appending(tmp
     "extra, match",
     [
         ('method = "kalman"', "method = 'kalman': expected one of mhe"),
-        ('"material.prestrain" = -0.01', "prestrain = -0.01: expected a positive number"),
+        ('"material.prestrain" = -0.01', "prestrain = -0.01: expected a number in \\[1e-09, 0.5\\]"),
         ('"estimator.windw" = 100', "estimator.windw = 100: expected an MHESettings field"),
         ("noise = 250", "noise = 250: expected a noise level in percent"),
         ('load = "L9"', "load = 'L9': expected one of L1"),

@@ -67,26 +67,27 @@ def lowest_modes(mass, stiffness, count: int) -> tuple[np.ndarray, np.ndarray]:
 class ModeCache:
     """Modes and static fields of one ``(M, K, B)``, computed on first use and kept.
 
-    The largest set of modes computed so far is kept; a request for fewer modes is served from it
-    (the lowest modes do not depend on how many more were computed, up to round-off).
+    Modes are kept per requested count: the lowest modes of a larger solve agree with a smaller
+    solve only to round-off, and serving one from the other would make a result depend on what was
+    asked before (a study's records must not depend on the order its tasks ran in).
     """
 
     def __init__(self, mass, stiffness, input_matrix) -> None:
         self._mass, self._stiffness, self._input = mass, stiffness, input_matrix
-        self._omega: np.ndarray | None = None
-        self._shapes: np.ndarray | None = None
+        self._modes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._lu = None
         self._fields: np.ndarray | None = None
 
     def modes(self, count: int) -> tuple[np.ndarray, np.ndarray]:
         """Lowest ``count`` ``(omega [rad/s], shapes)``; see :func:`lowest_modes`."""
         count = int(count)
-        if self._omega is None or count > self._omega.size:
-            self._omega, self._shapes = lowest_modes(self._mass, self._stiffness, count)
+        if count not in self._modes:
+            omega, shapes = lowest_modes(self._mass, self._stiffness, count)
             # Shared by every caller: a write through one of them would corrupt the others.
-            self._omega.setflags(write=False)
-            self._shapes.setflags(write=False)
-        return self._omega[:count], self._shapes[:, :count]
+            omega.setflags(write=False)
+            shapes.setflags(write=False)
+            self._modes[count] = (omega, shapes)
+        return self._modes[count]
 
     def static_solve(self, rhs: np.ndarray) -> np.ndarray:
         """``K^-1 rhs`` with one sparse LU of ``K`` kept for the model's lifetime."""

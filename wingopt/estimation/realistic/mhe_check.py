@@ -4,9 +4,9 @@ The linear moving-horizon estimator (:mod:`wingopt.estimation.mhe`) is kept unch
 are the seed protocol's). This check runs after it and only *adds*: the chi-square per datum of
 its deflection history against the data, per segment (:func:`.adequacy.assess`), the samples it
 left out (a skipped load onset, with the chi-square the MHE measured there) reported with their
-reason, and, when the data contradict the linear model, ``model_adequate = False``, a warning and
-the lift band widened by the square root of the worst chi-square per datum it saw (onset
-included): a confident wrong answer becomes a flagged answer whose band covers the misfit.
+reason and a warning line, and, when the data the estimate used contradict the linear model,
+``model_adequate = False``, a warning and the lift band widened by the square root of their worst
+segment chi-square per datum: a confident wrong answer becomes a flagged answer.
 """
 
 from __future__ import annotations
@@ -52,18 +52,22 @@ def check_mhe_result(
             worst = max(worst, worst_onset)
     for rs in result.info.get("restarts") or []:
         dropped.append({"restart": rs, "reason": "estimate restarted on data inconsistent with it"})
-    adequate = ad.adequate and not dropped
-    inflation = max(ad.inflation, float(np.sqrt(max(worst, 1.0)))) if not adequate else 1.0
+    # The band answers for the samples the estimate used: their misfit widens it. Samples the MHE
+    # left out (an onset it could not explain) did not enter the estimate; they are reported, with
+    # their misfit, as a warning of their own rather than blown into the band.
+    adequate = ad.adequate
+    inflation = ad.inflation if not adequate else 1.0
     warnings = []
     if not adequate:
         warnings.append(
-            f"linear model inadequate: chi-square per datum {ad.chi2_per_datum:.2f} on the samples used"
-            + (
-                f", {worst:.3g} on the {dropped[0]['samples']} samples left out"
-                if dropped and "samples" in dropped[0]
-                else ""
-            )
-            + f"; band widened x{inflation:.2f}; try --model nonlinear"
+            f"linear model inadequate: chi-square per datum {ad.chi2_per_datum:.2f} on the samples used; "
+            f"band widened x{inflation:.2f}; try --model nonlinear"
+        )
+    if dropped and "samples" in dropped[0]:
+        d = dropped[0]
+        warnings.append(
+            f"{d['samples']} samples at the start (to t = {d['t_to_s']:.4g} s) left out: the linear model does not "
+            f"fit them (chi-square per datum {worst:.3g}); the estimate uses the rest"
         )
     info = dict(result.info)
     info.update(
