@@ -19,7 +19,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from wingopt.errors import InputError
 from wingopt.optim.qp import ParametricQP
@@ -35,8 +34,11 @@ VOLT_SCALE = 1000.0
 
 
 def static_fields(model) -> np.ndarray:
-    """``Zs = K^-1 b``: the static deflection per volt of each patch pair, shape ``(n, m)``."""
-    return spla.splu(sp.csc_matrix(model.stiffness)).solve(np.asarray(model.actuation, dtype=float))
+    """``Zs = K^-1 b``: the static deflection per volt of each patch pair, shape ``(n, m)``.
+
+    The model's cached static fields (:meth:`wingopt.dynamics.SecondOrderSystem.static_fields`).
+    """
+    return model.system.static_fields()
 
 
 @dataclass(frozen=True)
@@ -130,8 +132,8 @@ def finite_limits(vmin, vmax, m: int) -> tuple[np.ndarray, np.ndarray]:
     """Per-patch voltage limits (V) as finite arrays: scalars broadcast, ``None``/inf become +-1e9 V."""
     lo = np.broadcast_to(np.asarray(-np.inf if vmin is None else vmin, dtype=float), (m,)).copy()
     hi = np.broadcast_to(np.asarray(np.inf if vmax is None else vmax, dtype=float), (m,)).copy()
-    if np.any(lo > hi):
-        raise InputError(f"vmin = {vmin!r}, vmax = {vmax!r}: expected vmin <= vmax")
+    if np.any(lo >= hi):  # the same rule as VoltageLimits: a range, not a point
+        raise InputError(f"vmin = {vmin!r}, vmax = {vmax!r}: expected vmin < vmax")
     # Unbounded sides become a bound far outside any voltage the problem could use (QP backends
     # want finite numbers; 1e9 V is never active).
     return np.where(np.isfinite(lo), lo, -1e9), np.where(np.isfinite(hi), hi, 1e9)

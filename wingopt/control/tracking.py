@@ -56,6 +56,7 @@ import numpy as np
 from wingopt.control.closed_loop import DEFAULT_PERIOD, check_limits
 from wingopt.control.kalman import EstimatorModel, KalmanSettings, SteadyStateKalman
 from wingopt.control.lqr import dlqr
+from wingopt.control.static_optimum import static_fields
 from wingopt.errors import InputError
 
 __all__ = [
@@ -67,7 +68,6 @@ __all__ = [
     "steady_state",
     "discrete_feedforward",
     "continuous_tracking",
-    "static_fields",
 ]
 
 log = logging.getLogger(__name__)
@@ -140,11 +140,6 @@ def steady_state(model, target: np.ndarray, r: float = R_DEFAULT, alpha: float =
     g = G.T @ (model.mass @ np.asarray(target, dtype=float))
     u = np.linalg.solve(alpha * H + r * np.eye(H.shape[0]), alpha * g)
     return u, G @ u
-
-
-def static_fields(model) -> np.ndarray:
-    """``K^-1 b`` (n, 9): the static field of one volt on each patch (the model's cached fields)."""
-    return model.system.static_fields()
 
 
 def discrete_feedforward(F, G, K, P, S, x_d, g=None) -> np.ndarray:
