@@ -148,27 +148,18 @@ def test_no_cycles_between_packages(graph):
     assert _cycles(edges) == []
 
 
-@pytest.mark.parametrize("engine", ENGINES)
-def test_engines_do_not_import_the_upper_layers(graph, engine):
-    bad = sorted(
-        f"{mod} -> {d}"
-        for mod, deps in graph.items()
-        if mod == engine or mod.startswith(engine + ".")
-        for d in deps
-        if any(d == f or d.startswith(f + ".") for f in FORBIDDEN_FOR_ENGINES)
-    )
-    assert bad == []
+RULES = {**{engine: FORBIDDEN_FOR_ENGINES for engine in ENGINES}, **LAYERS_BELOW_ENGINES}
+"""Layer -> the layers it must not import."""
 
 
-@pytest.mark.parametrize("layer", sorted(LAYERS_BELOW_ENGINES))
-def test_layers_below_the_engines_import_none(graph, layer):
-    forbidden = LAYERS_BELOW_ENGINES[layer]
+@pytest.mark.parametrize("layer", sorted(RULES))
+def test_layers_do_not_import_what_they_must_not(graph, layer):
     bad = sorted(
         f"{mod} -> {d}"
         for mod, deps in graph.items()
         if mod == layer or mod.startswith(layer + ".")
         for d in deps
-        if any(d == f or d.startswith(f + ".") for f in forbidden)
+        if any(d == f or d.startswith(f + ".") for f in RULES[layer])
     )
     assert bad == []
 
