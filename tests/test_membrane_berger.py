@@ -182,3 +182,18 @@ def test_bad_input(berger, l1):
         berger.static(l1[:-1])
     with pytest.raises(InputError, match="stretch_gain"):
         BergerMembrane(berger.linear, stretch_gain=-1.0)
+
+
+def test_a_static_solve_that_does_not_converge_is_a_solver_error():
+    """Both nonlinear static solves report non-convergence as a SolverError naming the solve (it was a
+    TypeError from a one-argument SolverError)."""
+    from wingopt.errors import SolverError
+    from wingopt.membrane import FvKMembrane, load_case
+
+    problem = load_problem("membrane").with_mesh((13, 7))
+    berger = BergerMembrane.from_problem(problem)
+    p = berger.linear.gram @ berger.linear.project(load_case("L1", problem.width, problem.height))
+    with pytest.raises(SolverError, match="Berger static solve failed .*no convergence in 1 iterations"):
+        berger.static(p, max_iter=1)
+    with pytest.raises(SolverError, match="FvK static solve failed .*did not converge in 1 iterations"):
+        FvKMembrane(problem).static(p, max_iter=1)

@@ -160,7 +160,11 @@ def run(args) -> int:
         by, _ = run_records(tasks, list(shared_all.values()), records, engine, save, "compare")
     failed = [by[t.key] for t in tasks if by.get(t.key, {}).get("status") != "ok"]
     if failed:
-        raise SolverError(f"{len(failed)} tasks failed, e.g. {failed[0]['key']}: {failed[0].get('error')}")
+        raise SolverError(
+            f"{len(failed)} study tasks",
+            f"failed, e.g. {failed[0]['key']}: {failed[0].get('error')}",
+            "see records.jsonl",
+        )
 
     sections = []
     report: dict = {"problem": problem.name, "truth_mesh": list(truth), "mesh": list(problem.nodes)}

@@ -99,7 +99,9 @@ def relax(criterion, count: int, rank: int = 12, solver: str | None = None) -> R
             bound = val if criterion.kind == "d" else float(np.sqrt(max(val, 0.0)))
             return Relaxation(np.clip(w.value, 0, 1), bound, name, prob.status, r, dropped)
         last = f"{name}: status {prob.status}"
-    raise SolverError(f"sensor-design relaxation: no solver succeeded ({last})")
+    raise SolverError(
+        "sensor-design relaxation", f"no solver succeeded ({last})", "try fewer candidates or the greedy selection"
+    )
 
 
 def round_weights(weights: np.ndarray, count: int, overlap: np.ndarray | None = None) -> np.ndarray:

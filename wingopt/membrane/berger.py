@@ -239,7 +239,7 @@ class BergerMembrane(PrestressedOperators):
             while np.any(T + t * step <= 0):
                 t *= 0.5
             T = T + t * step
-        raise SolverError(f"Berger static solve: no convergence in {max_iter} iterations")
+        raise SolverError("Berger static solve", f"no convergence in {max_iter} iterations", "reduce the load")
 
     def check_load(self, p: np.ndarray) -> np.ndarray:
         p = np.asarray(p, dtype=float)

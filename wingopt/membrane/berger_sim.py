@@ -256,7 +256,7 @@ def simulate_berger(
                 if np.max(np.abs(dq)) <= tol * max(np.max(np.abs(q1)), 1e-300):
                     break
             else:
-                raise SolverError(f"Berger step: Newton did not converge at t = {times[step]:.4g} s")
+                raise SolverError("Berger step", f"Newton did not converge at t = {times[step]:.4g} s", "add substeps")
             N1, diag1, U1 = stretch_force(q1)
             f1 = P[step + 1] - N1
             v1 = Phi[:, 1, 0] * q + Phi[:, 1, 1] * v + G0[:, 1] * f0 + G1[:, 1] * f1

@@ -286,7 +286,11 @@ class FvKMembrane(PrestressedOperators):
                 rw, ru, rv = self.residual(z, u, v)
                 res = np.linalg.norm(np.concatenate([rw - p, ru, rv])) / scale
                 return StaticSolution(z, u, v, it, float(res))
-        raise SolverError(f"FvK static solve: Newton did not converge in {max_iter} iterations (residual {res:.2e})")
+        raise SolverError(
+            "FvK static solve",
+            f"Newton did not converge in {max_iter} iterations (residual {res:.2e})",
+            "reduce the load or refine the mesh",
+        )
 
     def _berger_start(self, p: np.ndarray) -> np.ndarray:
         """Uniform-tension solution: fixed point ``T <- T(mean stretch of z(T))`` (geometric mean for stability)."""

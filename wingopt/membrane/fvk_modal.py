@@ -182,7 +182,9 @@ class CubicModalMembrane:
                     if np.max(np.abs(da)) <= tol * max(np.max(np.abs(a)), 1e-300):
                         break
                 else:
-                    raise SolverError(f"cubic modal step: Newton did not converge at t = {times[step]:.4g} s")
+                    raise SolverError(
+                        "cubic modal step", f"Newton did not converge at t = {times[step]:.4g} s", "add substeps"
+                    )
                 N1 = np.zeros(n)
                 N1[idx] = self.cubic_force(a)
                 J1 = self.cubic_jacobian(a)

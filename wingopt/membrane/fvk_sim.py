@@ -114,10 +114,12 @@ def simulate_fvk(
                 if size <= tol * max(np.max(np.abs(q1)), 1e-300):
                     break
                 if size > prev:
-                    raise SolverError(f"FvK step diverges at t = {times[step]:.4g} s: reduce dt or add substeps")
+                    raise SolverError("FvK step", f"diverges at t = {times[step]:.4g} s", "reduce dt or add substeps")
                 prev = size
             else:
-                raise SolverError(f"FvK step: no convergence in {max_iter} iterations at t = {times[step]:.4g} s")
+                raise SolverError(
+                    "FvK step", f"no convergence in {max_iter} iterations at t = {times[step]:.4g} s", "add substeps"
+                )
             N1 = remainder(q1)
             v = Phi[:, 1, 0] * q + Phi[:, 1, 1] * v + G0[:, 1] * f0 + G1[:, 1] * (P[step + 1] - N1)
             q, N0, Nprev = q1, N1, N0

@@ -295,7 +295,9 @@ def integrate(
                     solver = None  # slow contraction: refresh the tangent at the next iterate
                 prev = size
             else:
-                raise SolverError(f"generalised-alpha: Newton did not converge at t = {t0:.4g} s (dt = {h:g})")
+                raise SolverError(
+                    "generalised-alpha", f"Newton did not converge at t = {t0:.4g} s (dt = {h:g})", "reduce dt"
+                )
             a_new = (z1 - z - h * v - h * h * (0.5 - beta) * a) / (beta * h * h)
             v = v + h * ((1 - gam) * a + gam * a_new)
             z, a = z1, a_new

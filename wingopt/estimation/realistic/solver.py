@@ -76,7 +76,11 @@ def levenberg_marquardt(problem, theta0: np.ndarray, max_iter: int = 40, tol: fl
                 continue
             pred = -(2 * g @ step + step @ H @ step)
             if not np.isfinite(pred):
-                raise SolverError("realistic estimator: non-finite Levenberg–Marquardt step")
+                raise SolverError(
+                    "realistic estimator",
+                    "non-finite Levenberg–Marquardt step",
+                    "check the data and the noise level, or use --model linear",
+                )
             if pred < tol:
                 converged = True
                 break

@@ -172,7 +172,9 @@ def run_tasks(tasks, shared, jobs: int, engine) -> list[dict]:
         out = []
         for rec in eng.run(tasks, shared):
             if rec["status"] != "ok":
-                raise SolverError(f"study task {rec['key']}: {rec['error']}")
+                raise SolverError(
+                    f"study task {rec['key']}", str(rec["error"]), "see the task's record in records.jsonl"
+                )
             out.append(rec)
         return out
 
