@@ -183,21 +183,9 @@ def _read_slow(name: str, text: str, sensor_names) -> tuple[Measurements, CsvRep
     header = [h.strip() for h in rows[0]]
     if len(header) == 1 and (";" in header[0] or "\t" in header[0]):
         raise DataFileError(f"{name}:{lines[0][0]}: header {header[0]!r}: expected comma-separated columns")
-    if "t" not in header:
-        raise DataFileError(f"{name}:{lines[0][0]}: header {header}: expected a 't' column (time in s)")
-    missing = [s for s in sensor_names if s not in header]
-    if missing:
-        raise DataFileError(
-            f"{name}:{lines[0][0]}: missing sensor column(s) {', '.join(missing)}: expected one column per sensor "
-            f"of the problem ({', '.join(sensor_names)})"
-        )
-    dup = next((h for h in header if header.count(h) > 1), None)
-    if dup is not None:
-        raise DataFileError(f"{name}:{lines[0][0]}: column {dup!r} appears twice")
+    it, cols = header_columns(name, lines[0][0], header, sensor_names)
     if len(rows) < 2:
         raise DataFileError(f"{name}: header only, no data rows")
-    it = header.index("t")
-    cols = [header.index(s) for s in sensor_names]
     ignored = [h for h in header if h != "t" and h not in sensor_names]
     t = np.empty(len(rows) - 1)
     vals = np.empty((len(rows) - 1, len(cols)))
@@ -265,3 +253,19 @@ def _finish(name, t, vals, line_numbers, sensor_names, ignored) -> tuple[Measure
     meas = Measurements(t=grid_t, values=grid_vals, sensor_names=tuple(sensor_names), source=name)
     report = CsvReport(name, int(t.size), dt, missing_rows, int(n - t.size), ignored)
     return meas, report
+
+
+def header_columns(name: str, line: int, header: list[str], sensor_names) -> tuple[int, list[int]]:
+    """Columns of ``t`` and of each sensor (problem order) in a CSV header, or a one-line error."""
+    if "t" not in header:
+        raise DataFileError(f"{name}:{line}: header {header}: expected a 't' column (time in s)")
+    missing = [s for s in sensor_names if s not in header]
+    if missing:
+        raise DataFileError(
+            f"{name}:{line}: missing sensor column(s) {', '.join(missing)}: expected one column per sensor "
+            f"of the problem ({', '.join(sensor_names)})"
+        )
+    dup = next((h for h in header if header.count(h) > 1), None)
+    if dup is not None:
+        raise DataFileError(f"{name}:{line}: column {dup!r} appears twice")
+    return header.index("t"), [header.index(s) for s in sensor_names]

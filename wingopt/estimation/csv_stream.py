@@ -16,7 +16,7 @@ import re
 import numpy as np
 
 from wingopt.errors import DataFileError
-from wingopt.estimation.csv_data import MAX_STRETCH, _cell
+from wingopt.estimation.csv_data import MAX_STRETCH, _cell, header_columns
 
 __all__ = ["CsvRowParser", "END_MARKER"]
 
@@ -87,19 +87,7 @@ class CsvRowParser:
     def _header(self, row: list[str]) -> None:
         name, ln = self.source, self.line
         header = [h.strip() for h in row]
-        if "t" not in header:
-            raise DataFileError(f"{name}:{ln}: header {header}: expected a 't' column (time in s)")
-        missing = [s for s in self.sensor_names if s not in header]
-        if missing:
-            raise DataFileError(
-                f"{name}:{ln}: missing sensor column(s) {', '.join(missing)}: expected one column per sensor "
-                f"of the problem ({', '.join(self.sensor_names)})"
-            )
-        dup = next((h for h in header if header.count(h) > 1), None)
-        if dup is not None:
-            raise DataFileError(f"{name}:{ln}: column {dup!r} appears twice")
-        self._it = header.index("t")
-        self._cols = [header.index(s) for s in self.sensor_names]
+        self._it, self._cols = header_columns(name, ln, header, self.sensor_names)
         self._ncol = len(header)
         self.ignored_columns = [h for h in header if h != "t" and h not in self.sensor_names]
 
