@@ -91,10 +91,10 @@ class _Probe(MovingHorizonEstimator):
 
     def __init__(self, model, settings, load_space):
         super().__init__(model, settings)
-        from wingopt.estimation.mhe.model import ReducedModel
+        from wingopt.estimation.mhe.model import MHEModel
 
         self.load_space = load_space
-        self.reduced = ReducedModel.build(model, load_space, settings.modes)
+        self.reduced = MHEModel.build(model, load_space, settings.modes)
         self.evidence = []
 
     def _path_point(self, problem, sol, lam):  # noqa: D102 - instance override of the staticmethod

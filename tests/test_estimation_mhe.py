@@ -13,7 +13,7 @@ import scipy.sparse as sp
 from wingopt.errors import InputError, SolverError
 from wingopt.estimation.load_space import build_load_space, edge_mass
 from wingopt.estimation.mhe import MHESettings, MovingHorizonEstimator, mhe_identify
-from wingopt.estimation.mhe.model import ReducedModel
+from wingopt.estimation.mhe.model import MHEModel
 from wingopt.estimation.mhe.solvers import make_solver
 from wingopt.estimation.mhe.start import sign_score
 from wingopt.estimation.noise import estimate_noise_std
@@ -100,7 +100,7 @@ def test_free_load_space_coupling_and_edge_load(small_model, membrane_problem):
 def test_window_prediction_is_the_exact_discrete_model(small_model, small_problem):
     """All modes kept: the window's linear map reproduces the simulator (exact ZOH) to round-off."""
     ls = build_load_space(small_model, "fixed")
-    red = ReducedModel.build(small_model, ls, modes=None)
+    red = MHEModel.build(small_model, ls, modes=None)
     load = load_case("L2", small_problem.width, small_problem.height)
     z0 = small_model.project(lambda x, y: 0.003 * np.sin(np.pi * x / 0.14) * np.sin(np.pi * y / 0.07))
     traj = simulate_response(small_model, load, t_end=0.05, z0=z0)
@@ -114,7 +114,7 @@ def test_modal_truncation_keeps_steady_outputs(membrane_models, membrane_problem
     """40 of 325 modes: steady sensor outputs of L3 (the least smooth load) within 0.5 %."""
     model = membrane_models[(25, 13)]
     ls = build_load_space(model, "fixed")
-    red = ReducedModel.build(model, ls, modes=40)
+    red = MHEModel.build(model, ls, modes=40)
     f = ls.project(load_case("L3", membrane_problem.width, membrane_problem.height))
     exact = model.sensors.outputs(model.static_deflection(f))
     q = red.modal_forces(f) / red.omega**2
@@ -337,7 +337,7 @@ def test_random_walk_process_noise_is_the_inverse_covariance(small_model):
     from wingopt.estimation.mhe.load_model import RandomWalk, l2_metric
 
     ls = build_load_space(small_model, "fixed")
-    red = ReducedModel.build(small_model, ls, 20)
+    red = MHEModel.build(small_model, ls, 20)
     u = red.modal_forces(small_model.project(load_case("L1", 0.14, 0.07)))
     rw = RandomWalk.build(red, 1.0, 100.0, u)
     G = l2_metric(red)

@@ -51,7 +51,7 @@ from wingopt.estimation.load_space import build_load_space
 from wingopt.estimation.mhe.consistency import first_inconsistent
 from wingopt.estimation.mhe.information import WindowInformation
 from wingopt.estimation.mhe.load_model import l2_metric
-from wingopt.estimation.mhe.model import ReducedModel
+from wingopt.estimation.mhe.model import MHEModel
 from wingopt.estimation.mhe.settings import LOAD_MODELS, SIGN_MARGIN, STATE_PRIOR_EVIDENCE, MHESettings
 from wingopt.estimation.mhe.solvers import NumpySolver, WindowSolution, make_solver
 from wingopt.estimation.mhe.start import SignPrior
@@ -79,7 +79,7 @@ class MovingHorizonEstimator(StartUp, WindowInformation):
         self.settings = settings or MHESettings()
         s = self.settings
         self.load_space = build_load_space(model, s.load_space)
-        self.reduced = ReducedModel.build(model, self.load_space, s.modes)
+        self.reduced = MHEModel.build(model, self.load_space, s.modes)
         self.solver = make_solver(s.backend, s.qp_solver, max_iterations=s.max_iterations, tolerance=s.tolerance)
         # The start-up's coarse problem is tiny and always solved with the fast dense solver.
         self._coarse_solver = NumpySolver(max_iterations=200, tolerance=s.tolerance)
@@ -132,7 +132,7 @@ class MovingHorizonEstimator(StartUp, WindowInformation):
             raise InputError("measurements: irregular sampling; resample to a uniform time step first")
         if abs(dt - red.dt) > 1e-9 * red.dt:
             log.info("data sampled at dt = %g s (problem: %g s): rebuilding the reduced model", dt, red.dt)
-            self.reduced = red = ReducedModel.build(self.model, self.load_space, s.modes, dt)
+            self.reduced = red = MHEModel.build(self.model, self.load_space, s.modes, dt)
         self.dt = dt
         y = np.array(meas.values, dtype=float)
         missing = ~np.isfinite(y)

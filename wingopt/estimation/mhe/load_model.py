@@ -30,7 +30,7 @@ Why this form (measured, ``docs/estimation.md``):
   changes with the angle of attack, slowly.
 
 All in modal-force coordinates ``u`` of the estimator (``f = E u``, the smoothest load with those
-modal forces, :class:`~wingopt.estimation.mhe.model.ReducedModel`).
+modal forces, :class:`~wingopt.estimation.mhe.model.MHEModel`).
 """
 
 from __future__ import annotations
@@ -40,12 +40,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.mhe.model import ReducedModel
+from wingopt.estimation.mhe.model import MHEModel
 
 __all__ = ["RandomWalk", "l2_metric"]
 
 
-def l2_metric(reduced: ReducedModel) -> np.ndarray:
+def l2_metric(reduced: MHEModel) -> np.ndarray:
     """``E^T Gram E`` ``(m, m)``: the squared L2 norm of the load ``f = E u`` is ``u^T (E^T Gram E) u``."""
     E = reduced.load_map
     G = np.asarray(E.T @ (reduced.load_space.gram @ E))
@@ -78,7 +78,7 @@ class RandomWalk:
     @classmethod
     def build(
         cls,
-        reduced: ReducedModel,
+        reduced: MHEModel,
         timescale: float,
         shape_timescale: float,
         u_ref: np.ndarray,

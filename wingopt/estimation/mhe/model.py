@@ -39,7 +39,7 @@ from wingopt.errors import InputError
 from wingopt.estimation.load_space import LoadSpace
 from wingopt.membrane import MembraneModel
 
-__all__ = ["ReducedModel", "WindowBasis", "flush_subnormal"]
+__all__ = ["MHEModel", "WindowBasis", "flush_subnormal"]
 
 log = logging.getLogger(__name__)
 
@@ -83,7 +83,7 @@ class WindowBasis:
 
 
 @dataclass(frozen=True, eq=False)
-class ReducedModel:
+class MHEModel:
     """Modal-truncated membrane model with the load reduced to modal forces.
 
     Build with :meth:`build`. All arrays are in physical modal units (``q`` in ``sqrt(kg)·m``,
@@ -120,7 +120,7 @@ class ReducedModel:
     @classmethod
     def build(
         cls, model: MembraneModel, load_space: LoadSpace, modes: int | None = 60, dt: float | None = None
-    ) -> ReducedModel:
+    ) -> MHEModel:
         """Reduce ``model`` to its lowest ``modes`` modes (``None``: all) at sample period ``dt``."""
         n = model.n
         modes = n if modes is None else int(modes)

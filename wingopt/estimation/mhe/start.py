@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from wingopt.estimation.mhe.model import ReducedModel
+from wingopt.estimation.mhe.model import MHEModel
 from wingopt.estimation.mhe.solvers import WindowSolution, WindowSolver
 from wingopt.estimation.mhe.window import WindowProblem
 
@@ -51,7 +51,7 @@ class SignPrior:
     deflection_modal: np.ndarray | None = None
 
 
-def sign_score(reduced: ReducedModel, theta: np.ndarray, prior: SignPrior) -> float:
+def sign_score(reduced: MHEModel, theta: np.ndarray, prior: SignPrior) -> float:
     """Agreement of ``theta`` with the sign prior, in ``[-2, 2]`` (``[-1, 1]`` without deflection prior).
 
     Sum of the cosine between the estimated and the prior load (``L2`` inner product of the load
@@ -70,7 +70,7 @@ def sign_score(reduced: ReducedModel, theta: np.ndarray, prior: SignPrior) -> fl
     return score
 
 
-def smooth_load_shapes(reduced: ReducedModel, count: int) -> np.ndarray:
+def smooth_load_shapes(reduced: MHEModel, count: int) -> np.ndarray:
     """Modal forces ``(count, m)`` of the ``count`` smoothest load shapes (least ``Lam`` per ``L2``).
 
     Generalised eigenvectors of ``(Lam, Gram)`` in the load space with the smallest eigenvalues,

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
-from wingopt.estimation.mhe.model import ReducedModel, WindowBasis
+from wingopt.estimation.mhe.model import MHEModel, WindowBasis
 
 __all__ = ["WindowProblem", "LinearBounds"]
 
@@ -44,7 +44,7 @@ class WindowProblem:
 
     Attributes
     ----------
-    reduced : ReducedModel
+    reduced : MHEModel
     basis : WindowBasis
     y, w : ndarray ``(length, p)``
         Data (missing samples set to 0) and weights (0 where missing).
@@ -54,7 +54,7 @@ class WindowProblem:
     bounds : LinearBounds or None
     """
 
-    reduced: ReducedModel
+    reduced: MHEModel
     basis: WindowBasis
     y: np.ndarray
     w: np.ndarray

@@ -53,7 +53,7 @@ from wingopt.errors import InputError
 from wingopt.estimation.data import Measurements
 from wingopt.estimation.mhe import MovingHorizonEstimator
 from wingopt.estimation.mhe.consistency import SIGNIFICANCE
-from wingopt.estimation.mhe.model import ReducedModel
+from wingopt.estimation.mhe.model import MHEModel
 from wingopt.estimation.mhe.start import smooth_load_shapes
 from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
 from wingopt.estimation.streaming.rows import LinearRows, RtiNormalEquations
@@ -93,7 +93,7 @@ class StreamingEstimator:
         noise_std: np.ndarray | float | None = None,
         initial_load: float | None = None,
         initial_deflection: float | None = None,
-        rows: Callable[[ReducedModel], Any] = LinearRows,
+        rows: Callable[[MHEModel], Any] = LinearRows,
     ) -> None:
         self.model = model
         self._make_rows = rows
@@ -187,7 +187,7 @@ class StreamingEstimator:
         miss = ~np.isfinite(y)
         return np.where(miss, 0.0, y), np.where(miss, 0.0, 1.0 / self.sigma)
 
-    def _setup_scales(self, red: ReducedModel, ymax: float) -> None:
+    def _setup_scales(self, red: MHEModel, ymax: float) -> None:
         """Scaled unknowns as in the batch: the data's largest output is O(1) for mode 1."""
         gain = np.max(np.stack([np.diag(C) for C in red.sensor_matrices]) / red.omega**2)
         A = np.sqrt(max(ymax, 1e-300) / gain)
@@ -203,7 +203,7 @@ class StreamingEstimator:
         self._startup_at = max(window, int(round(s.startup_windows * window)))
         red = self.reduced
         if abs(self.dt - red.dt) > 1e-9 * red.dt:
-            red = ReducedModel.build(model, self._batch.load_space, s.mhe.modes, self.dt)
+            red = MHEModel.build(model, self._batch.load_space, s.mhe.modes, self.dt)
         self._red = red
         self.sigma = self._noise(Y)
         m = red.m

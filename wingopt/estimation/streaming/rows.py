@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import blas
 
-from wingopt.estimation.mhe.model import ReducedModel, flush_subnormal
+from wingopt.estimation.mhe.model import MHEModel, flush_subnormal
 
 __all__ = ["LinearRows", "RtiNormalEquations", "DECAY_EXPONENT"]
 
@@ -45,7 +45,7 @@ class LinearRows:
 
     Parameters
     ----------
-    reduced : ReducedModel
+    reduced : MHEModel
         Modal model at the data's sample period.
 
     Attributes
@@ -58,7 +58,7 @@ class LinearRows:
         ``lift = lift_row @ theta``.
     """
 
-    def __init__(self, reduced: ReducedModel) -> None:
+    def __init__(self, reduced: MHEModel) -> None:
         self.reduced = reduced
         m = reduced.m
         self.m, self.p, self.dim = m, reduced.p, 3 * m
