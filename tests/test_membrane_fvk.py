@@ -119,6 +119,9 @@ def test_long_rectangle_tends_to_the_exact_cylindrical_membrane(problem):
     C = mat.youngs_modulus * mat.thickness / (1 - mat.poisson_ratio**2)
     N = (C * q * q * b * b / 24) ** (1 / 3)
     w0 = q * b * b / (8 * N)
+    # the published design formula (Roark; Bell Helicopter SDM 1977) is the same closed form
+    E, t, nu = mat.youngs_modulus, mat.thickness, mat.poisson_ratio
+    assert w0 == pytest.approx(b / 8 * (24 * (1 - nu**2) * q * b / (E * t)) ** (1 / 3), rel=1e-12)
     strip = dataclasses.replace(problem, width=6 * b, height=b, sensors=())
     m = FvKMembrane(strip, (73, 13), MembraneParameters(0.0, 0.0))
     s = m.static(load_vector(m.space, lambda x, y: np.full_like(x, q)))
