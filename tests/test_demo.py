@@ -21,7 +21,7 @@ def test_demo_writes_every_run_and_the_report(demo_dir):
         assert (demo_dir / "morph" / shape / "summary.json").is_file()
         assert (demo_dir / "morph" / shape / "voltages.csv").is_file()
     for load in ("L1", "L2", "L3"):
-        for method in ("mhe", "jekf", "jekf-tuned"):
+        for method in ("mhe", "jekf-seed", "jekf-tuned"):
             assert (demo_dir / "identify" / f"{load}-{method}" / "summary.json").is_file()
     text = (demo_dir / "report.html").read_text()
     assert "<script" not in text and re.findall(r'(?:src|href)="(?!data:)', text) == []
@@ -38,7 +38,7 @@ def test_demo_numbers(demo_dir):
     # the quick configuration (0.5 s of data) still separates the estimators on L1/L2
     for load in ("L1", "L2"):
         runs = s["identify"][load]
-        assert runs["mhe"]["load_error"] < runs["jekf-tuned"]["load_error"] < runs["jekf"]["load_error"], load
+        assert runs["mhe"]["load_error"] < runs["jekf-tuned"]["load_error"] < runs["jekf-seed"]["load_error"], load
     assert s["identify"]["L1"]["mhe"]["load_error"] < 0.03
     assert s["tables"]["membrane_6_2"]["ours"][0] == pytest.approx(82.14063341, rel=1e-8)
 

@@ -91,11 +91,11 @@ def register(sub, common) -> None:
     p.add_argument("--mesh", help="estimator mesh NXxNY (default: the problem's)")
     p.add_argument(
         "--method",
-        choices=("mhe", "jekf", "jekf-tuned"),
+        choices=("mhe", "jekf-seed", "jekf-tuned", "jekf"),
         default="mhe",
-        help="estimator: mhe (default); jekf = the seed's filter (200 Pa prior, R = 1e-4, lambda tuned on the "
-        "noise-free truth as the seed did, a default lambda on measured data); jekf-tuned = zero initial load, "
-        "lambda from the data",
+        help="estimator: mhe (default); jekf-seed (alias jekf) = the seed's filter (200 Pa prior, R = 1e-4, "
+        "lambda tuned on the noise-free truth as the seed did, a default lambda on measured data); "
+        "jekf-tuned = zero initial load, lambda from the data",
     )
     p.add_argument(
         "--model",

@@ -112,7 +112,7 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
         # -- 2. load identification -------------------------------------------------------------
         for load in LOADS:
             summary["identify"][load] = {}
-            for method in ("mhe", "jekf", "jekf-tuned"):
+            for method in ("mhe", "jekf-seed", "jekf-tuned"):
                 bar.set_description(f"identify {load}: {method}")
                 run = identify(
                     membrane,
@@ -174,7 +174,7 @@ def _morph_rows(summary):
 def _identify_rows(summary):
     rows = []
     for load, runs in summary["identify"].items():
-        mhe, seed, tuned = runs["mhe"], runs["jekf"], runs["jekf-tuned"]
+        mhe, seed, tuned = runs["mhe"], runs["jekf-seed"], runs["jekf-tuned"]
         std = mhe.get("lift_std_N")
         rows.append(
             [

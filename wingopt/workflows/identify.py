@@ -31,12 +31,15 @@ from wingopt.validate import check_seed
 from wingopt.values import LambdaChoice, NoiseLevel
 from wingopt.workflows.protocols import TRUTH_NODES, SimulatedCase
 
-__all__ = ["METHODS", "MODELS", "IdentifyRun", "identify", "write_identify_outputs", "LOAD_GRID"]
+__all__ = ["METHODS", "METHOD_ALIASES", "MODELS", "IdentifyRun", "identify", "write_identify_outputs", "LOAD_GRID"]
 
-METHODS = ("mhe", "jekf", "jekf-tuned")
-"""``mhe``: moving-horizon estimator; ``jekf``: the seed's filter (200 Pa prior, ``R = 1e-4``,
+METHODS = ("mhe", "jekf-seed", "jekf-tuned")
+"""``mhe``: moving-horizon estimator; ``jekf-seed``: the seed's filter (200 Pa prior, ``R = 1e-4``,
 lambda tuned on the noise-free truth as the seed did); ``jekf-tuned``: zero initial load, lambda
-from the data."""
+from the data. The same names as ``wingopt compare`` and :mod:`wingopt.workflows.studies`."""
+
+METHOD_ALIASES = {"jekf": "jekf-seed"}
+"""Older names still accepted (``--method jekf`` was the seed's filter before the names were unified)."""
 
 MODELS = ("auto", "linear", "nonlinear")
 """Membrane model of the ``mhe`` method: ``linear`` = the seed protocol's moving-horizon estimator
@@ -174,7 +177,8 @@ def identify(
     data : path, Measurements or array, optional
         Measured record instead of ``load``: a CSV file (``t`` column + one column per sensor), a
         :class:`Measurements`, or an array ``(N, 1 + p)`` of rows ``t, s_1 .. s_p`` (problem's sensor order).
-    method : {"mhe", "jekf", "jekf-tuned"}
+    method : {"mhe", "jekf-seed", "jekf-tuned"}
+        Estimator (``"jekf"`` is accepted for ``"jekf-seed"``).
     nodes : (int, int), optional
         Estimator mesh (default: the problem's).
     initial_load : float, optional
@@ -215,8 +219,9 @@ def identify(
         problem = load_problem(problem)
     if getattr(problem, "kind", None) != "membrane":
         raise InputError(f"problem: identify needs a membrane problem, got kind {getattr(problem, 'kind', None)!r}")
+    method = METHOD_ALIASES.get(method, method)
     if method not in METHODS:
-        raise InputError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
+        raise InputError(f"method = {method!r}: expected one of {', '.join(METHODS)} (alias: jekf = jekf-seed)")
     if not problem.sensors:
         raise InputError(f"problem {problem.name!r}: no [[sensors]]: identification needs stretch sensors")
     check_seed(seed)
@@ -294,7 +299,6 @@ def identify(
         model = "nonlinear" if method == "mhe" and truth == "berger" else "linear"
     if model == "nonlinear" and method != "mhe":
         raise InputError(f"model = nonlinear: only with method mhe (got {method!r})")
-    name = {"mhe": "mhe", "jekf": "jekf-seed", "jekf-tuned": "jekf-tuned"}[method]
     if method != "mhe" and jekf_modes is not None:
         extra["modes"] = jekf_modes
     t0 = time.perf_counter()
@@ -303,7 +307,7 @@ def identify(
 
         result = realistic_identify(membrane, meas, realistic_settings, initial_load=initial_load)
     else:
-        result = run_method(name, membrane, meas, mhe_settings, initial_load=initial_load, truth=case, **extra)
+        result = run_method(method, membrane, meas, mhe_settings, initial_load=initial_load, truth=case, **extra)
         if method == "mhe":
             from wingopt.estimation.realistic.mhe_check import check_mhe_result
 
