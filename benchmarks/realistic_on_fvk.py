@@ -34,6 +34,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify  # noqa: E402
+from wingopt.estimation.realistic.berger_modal import BergerModal  # noqa: E402
 from wingopt.estimation.realistic.mhe_check import check_mhe_result  # noqa: E402
 from wingopt.fe import integrate  # noqa: E402
 from wingopt.membrane import MembraneModel, add_noise  # noqa: E402
@@ -55,6 +56,11 @@ def _clean(load: str, truth: str, pf: float, damping: float):
     )
     absl = integrate(rec.model.space, lambda x, y, p=rec.load: np.abs(p(x, y)), order=8)
     return rec, absl
+
+
+@functools.lru_cache(maxsize=1)
+def _first_mode(model):
+    return BergerModal.build(model, 1)
 
 
 def run(load, truth, pf, damping, noise, seed, estimator, settings, model) -> dict:
@@ -95,6 +101,10 @@ def run(load, truth, pf, damping, noise, seed, estimator, settings, model) -> di
         true = {"prestrain_x": p.eps0_x, "prestrain_y": p.eps0_y, "damping": p.viscous_scale}
         out["parameters"], out["parameters_std"], out["true_parameters"] = est, std, true
         out["parameter_rel_error"] = {k: (est[k] - true[k]) / true[k] for k in true}
+        # the combination the first mode's frequency fixes: omega_1^2 ~ Tx kx_1 + Ty ky_1
+        w2 = _first_mode(model).omega
+        comb = w2(est["prestrain_x"], est["prestrain_y"])[0] ** 2 / w2(true["prestrain_x"], true["prestrain_y"])[0] ** 2
+        out["first_mode_combination_error"] = float(comb - 1)
     if load.endswith("+gust"):
         k = np.searchsorted(res.t, 0.1)
         idx = np.searchsorted(rec.t, res.t)
