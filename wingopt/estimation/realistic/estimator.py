@@ -152,6 +152,7 @@ def _scan(rp: RecordProblem, sign_pref: float) -> np.ndarray:
         r = ((rp.y - pred) / rp.sigma)[rp.valid]
         costs.append(float(r @ r))
     costs = np.array(costs) + amps**2
+    costs[~np.isfinite(costs)] = np.inf  # a start the explicit integrator cannot follow (FvK at 3 prior std)
     best = int(np.argmin(costs))
     log.debug("scan: best amplitude %+.2f prior std (cost %.4g)", amps[best], costs[best])
     return th[best]
