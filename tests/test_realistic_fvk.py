@@ -144,3 +144,14 @@ def test_must_show_lift_on_fvk_truth_49x25(model, load):
     absl = integrate(rec.model.space, lambda x, y: np.abs(rec.load(x, y)), order=8)
     assert abs(res.lift[-1] - rec.lift[-1]) / absl < 0.03
     assert res.info["model_adequate"]
+
+
+def test_identify_model_fvk_selects_the_fvk_membrane():
+    """``identify(..., model="fvk")`` (``wingopt identify --model fvk``) runs the realistic estimator
+    with the cubic modal FvK membrane."""
+    from wingopt.workflows.identify import identify
+
+    s = RealisticSettings(modes=12, cubic_modes=6, shapes=6, membrane="nonlinear", load_model="constant")
+    run = identify("membrane", load="L1", t_end=0.1, model="fvk", realistic_settings=s)
+    assert run.result.info["model"] == "nonlinear (FvK cubic, 6 modes)"
+    assert np.isfinite(run.result.lift[-1])
