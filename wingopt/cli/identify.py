@@ -99,10 +99,11 @@ def register(sub, common) -> None:
     )
     p.add_argument(
         "--model",
-        choices=("auto", "linear", "nonlinear"),
+        choices=("auto", "linear", "nonlinear", "fvk"),
         default="auto",
         help="membrane model of --method mhe: nonlinear = Berger membrane with prestrain (and damping) identified, "
-        "gusts followed, model-adequacy flag; linear = the seed's linear MHE (unchanged); auto (default): "
+        "gusts followed, model-adequacy flag; fvk = the same estimator with the cubic modal Foppl-von Karman "
+        "membrane (opt-in); linear = the seed's linear MHE (unchanged); auto (default): "
         "nonlinear with --truth berger, linear otherwise (measured data included: the nonlinear model is not yet "
         "better on Foppl-von Karman records, docs/estimation_realistic.md)",
     )

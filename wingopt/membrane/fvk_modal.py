@@ -29,9 +29,46 @@ from wingopt.membrane.berger_sim import (
 )
 from wingopt.membrane.fvk import FvKMembrane
 
-__all__ = ["CubicModalMembrane"]
+__all__ = ["CubicModalMembrane", "cubic_tensor"]
 
 log = logging.getLogger(__name__)
+
+
+def cubic_tensor(fvk: FvKMembrane, shapes: np.ndarray) -> np.ndarray:
+    """Symmetrised ``B[i, (j, k, l)]`` ``(r, r^3)`` with ``shapes^T N(shapes a) = B (a⊗a⊗a)``.
+
+    ``shapes`` ``(n, r)``: coefficient vectors of any ``r`` deflection shapes of ``fvk``'s space
+    (``r^2 / 2`` in-plane solves). The tensor does not depend on the prestrains or the damping.
+    """
+    r = shapes.shape[1]
+    o, C, nu, W = fvk.ops, fvk.C, fvk.nu, fvk.ops.weights
+    G = 0.5 * C * (1 - nu)
+    gx, gy = np.array([o.gradient(shapes[:, j]) for j in range(r)]).transpose(1, 0, 2)  # (r, nq) each
+    lu = fvk._inplane[1]
+    n = fvk.n
+    # Quadratic strains of each ordered pair (j, k): w = phi_j + phi_k contributes a_j a_k (...).
+    ex = 0.5 * gx[:, None, :] * gx[None, :, :]
+    ey = 0.5 * gy[:, None, :] * gy[None, :, :]
+    gg = 0.5 * (gx[:, None, :] * gy[None, :, :] + gy[:, None, :] * gx[None, :, :])
+    S = np.empty((3, r, r, W.size))
+    for j in range(r):
+        for k in range(j, r):
+            nx, ny, nxy = C * (ex[j, k] + nu * ey[j, k]), C * (ey[j, k] + nu * ex[j, k]), G * gg[j, k]
+            rhs = np.concatenate([o.divergence(W * nx, W * nxy), o.divergence(W * nxy, W * ny)])
+            uv = -lu.solve(rhs)
+            ux, uy = o.gradient(uv[:n])
+            vx, vy = o.gradient(uv[n:])
+            exj, eyj, gj = ex[j, k] + ux, ey[j, k] + vy, gg[j, k] + uy + vx
+            S[:, j, k] = S[:, k, j] = (C * (exj + nu * eyj), C * (eyj + nu * exj), G * gj)
+    # B[j, k, i, l] = ∫ Sx_jk phi_i,x phi_l,x + Sy_jk phi_i,y phi_l,y + Sxy_jk (phi_i,x phi_l,y + phi_i,y phi_l,x)
+    Sw = S.reshape(3, r * r, -1) * W
+    B = Sw[0] @ np.einsum("iq,lq->qil", gx, gx).reshape(W.size, r * r)
+    B += Sw[1] @ np.einsum("iq,lq->qil", gy, gy).reshape(W.size, r * r)
+    B += Sw[2] @ (np.einsum("iq,lq->qil", gx, gy) + np.einsum("iq,lq->qil", gy, gx)).reshape(W.size, r * r)
+    B = B.reshape(r, r, r, r).transpose(2, 0, 1, 3)  # (i, j, k, l)
+    perms = ((1, 2, 3), (1, 3, 2), (2, 1, 3), (2, 3, 1), (3, 1, 2), (3, 2, 1))
+    B = sum(B.transpose((0,) + p) for p in perms) / 6.0
+    return B.reshape(r, r**3)
 
 
 class CubicModalMembrane:
@@ -61,36 +98,7 @@ class CubicModalMembrane:
         self.tensor = self._cubic_tensor()  # (r, r^3): row i, column (j, k, l)
 
     def _cubic_tensor(self) -> np.ndarray:
-        """Symmetrised ``B[i, (j, k, l)]`` with ``Phi^T N(Phi a) = B (a⊗a⊗a)``."""
-        fvk, r = self.fvk, self.r
-        o, C, nu, W = fvk.ops, fvk.C, fvk.nu, fvk.ops.weights
-        G = 0.5 * C * (1 - nu)
-        gx, gy = np.array([o.gradient(self.shapes[:, j]) for j in range(r)]).transpose(1, 0, 2)  # (r, nq) each
-        lu = fvk._inplane[1]
-        n = fvk.n
-        # Quadratic strains of each ordered pair (j, k): w = phi_j + phi_k contributes a_j a_k (...).
-        ex = 0.5 * gx[:, None, :] * gx[None, :, :]
-        ey = 0.5 * gy[:, None, :] * gy[None, :, :]
-        gg = 0.5 * (gx[:, None, :] * gy[None, :, :] + gy[:, None, :] * gx[None, :, :])
-        S = np.empty((3, r, r, W.size))
-        for j in range(r):
-            for k in range(j, r):
-                nx, ny, nxy = C * (ex[j, k] + nu * ey[j, k]), C * (ey[j, k] + nu * ex[j, k]), G * gg[j, k]
-                rhs = np.concatenate([o.divergence(W * nx, W * nxy), o.divergence(W * nxy, W * ny)])
-                uv = -lu.solve(rhs)
-                ux, uy = o.gradient(uv[:n])
-                vx, vy = o.gradient(uv[n:])
-                exj, eyj, gj = ex[j, k] + ux, ey[j, k] + vy, gg[j, k] + uy + vx
-                S[:, j, k] = S[:, k, j] = (C * (exj + nu * eyj), C * (eyj + nu * exj), G * gj)
-        # B[j, k, i, l] = ∫ Sx_jk phi_i,x phi_l,x + Sy_jk phi_i,y phi_l,y + Sxy_jk (phi_i,x phi_l,y + phi_i,y phi_l,x)
-        Sw = S.reshape(3, r * r, -1) * W
-        B = Sw[0] @ np.einsum("iq,lq->qil", gx, gx).reshape(W.size, r * r)
-        B += Sw[1] @ np.einsum("iq,lq->qil", gy, gy).reshape(W.size, r * r)
-        B += Sw[2] @ (np.einsum("iq,lq->qil", gx, gy) + np.einsum("iq,lq->qil", gy, gx)).reshape(W.size, r * r)
-        B = B.reshape(r, r, r, r).transpose(2, 0, 1, 3)  # (i, j, k, l)
-        perms = ((1, 2, 3), (1, 3, 2), (2, 1, 3), (2, 3, 1), (3, 1, 2), (3, 2, 1))
-        B = sum(B.transpose((0,) + p) for p in perms) / 6.0
-        return B.reshape(r, r**3)
+        return cubic_tensor(self.fvk, self.shapes)
 
     def cubic_force(self, a: np.ndarray) -> np.ndarray:
         """``B(a, a, a)``: the modal nonlinear force of amplitudes ``a`` (r,)."""

@@ -41,10 +41,11 @@ from the data. The same names as ``wingopt compare`` and :mod:`wingopt.workflows
 METHOD_ALIASES = {"jekf": "jekf-seed"}
 """Older names still accepted (``--method jekf`` was the seed's filter before the names were unified)."""
 
-MODELS = ("auto", "linear", "nonlinear")
+MODELS = ("auto", "linear", "nonlinear", "fvk")
 """Membrane model of the ``mhe`` method: ``linear`` = the seed protocol's moving-horizon estimator
 (unchanged; an adequacy check is added to its result); ``nonlinear`` = the realistic estimator
 (Berger membrane, prestrain/damping identified, gusts; :mod:`wingopt.estimation.realistic`);
+``fvk`` = the same estimator with the cubic modal Föppl–von Kármán membrane (opt-in);
 ``auto`` = ``nonlinear`` on simulated nonlinear (Berger) truth, ``linear`` otherwise, measured data
 included: on Föppl–von Kármán records and on the shipped tunnel record the realistic estimator is
 not yet better than the linear one (docs/estimation_realistic.md), so it is opt-in there
@@ -193,7 +194,7 @@ def identify(
     jekf_modes : int, optional
         Modes kept by the JEKF (default all: exact; 60 is ~20x faster with the same final errors
         to 4 digits on L1–L3, measured).
-    model : {"auto", "linear", "nonlinear"}
+    model : {"auto", "linear", "nonlinear", "fvk"}
         See :data:`MODELS`.
     truth : {"linear", "berger"}
         Simulated truth: the seed's linear membrane, or a Berger (geometrically nonlinear)
@@ -297,6 +298,11 @@ def identify(
     warnings = sanity.record_checks(membrane, meas, prior)
     if model == "auto":
         model = "nonlinear" if method == "mhe" and truth == "berger" else "linear"
+    if model == "fvk":
+        from wingopt.estimation.realistic import RealisticSettings
+
+        realistic_settings = (realistic_settings or RealisticSettings()).replace(membrane_model="fvk")
+        model = "nonlinear"
     if model == "nonlinear" and method != "mhe":
         raise InputError(f"model = nonlinear: only with method mhe (got {method!r})")
     if method != "mhe" and jekf_modes is not None:

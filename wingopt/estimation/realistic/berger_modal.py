@@ -31,6 +31,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from wingopt.errors import InputError
+from wingopt.estimation.realistic.tangent import simulate_tangent
 from wingopt.fe import DX, DY, VALUE, assemble, separable
 from wingopt.membrane import MembraneModel
 
@@ -272,6 +273,10 @@ class BergerModal:
             qs = us / (k0s + Sx * kxss + Sy * kyss)
             Q[k + 1, ..., :md], Q[k + 1, ..., md:] = q, qs
         return Q
+
+    def simulate_tangent(self, q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforces, nonlinear: bool = True):
+        """Trajectory and exact tangents (:func:`~wingopt.estimation.realistic.tangent.simulate_tangent`)."""
+        return simulate_tangent(self, q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforces, nonlinear)
 
     def outputs(self, Q: np.ndarray) -> np.ndarray:
         """Sensor outputs ``(N, p)`` of real modal displacements ``Q`` ``(N, m)``."""

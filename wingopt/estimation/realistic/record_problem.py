@@ -24,7 +24,6 @@ import numpy as np
 from wingopt.errors import InputError
 from wingopt.estimation.realistic.berger_modal import BergerModal
 from wingopt.estimation.realistic.load_model import GustAmplitude, LoadShapes
-from wingopt.estimation.realistic.tangent import simulate_tangent
 
 __all__ = ["PARAMETERS", "ParameterPrior", "RecordProblem"]
 
@@ -69,7 +68,7 @@ class ParameterPrior:
 
 @dataclass(frozen=True, eq=False)
 class RecordProblem:
-    """One record's estimation problem for the modal Berger model."""
+    """One record's estimation problem for a modal membrane (Berger or cubic FvK)."""
 
     model: BergerModal
     shapes: LoadShapes
@@ -238,8 +237,7 @@ class RecordProblem:
                 du[gs] = hats[k][:, None] * fc[None]
             return du
 
-        return simulate_tangent(
-            self.model,
+        return self.model.simulate_tangent(
             ph["q0"][0],
             ph["v0"][0],
             forces,

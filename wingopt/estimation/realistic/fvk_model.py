@@ -1,0 +1,195 @@
+"""Cubic modal Föppl–von Kármán membrane for the realistic estimator, with exact sensitivities.
+
+The FvK in-plane problem is linear, so the deflection-induced out-of-plane force is exactly cubic
+(docs/membrane_nonlinear.md §2b). On the ``r`` lowest modes of the estimator's modal model
+(:class:`~wingopt.estimation.realistic.berger_modal.BergerModal`: same modes, linear part,
+damping, sensors and input) the Galerkin force is ``N_i(q) = B_ijkl q_j q_k q_l`` with the tensor of
+:func:`wingopt.membrane.fvk_modal.cubic_tensor`, built once on the estimator's mesh; the higher
+modes respond linearly at the prestress. The tensor does not depend on the prestrains or the
+damping: they enter the linear part only, exactly as in the Berger model.
+
+Integration (as the modal Berger model's, explicit, second order): ``N(q) = S(q) q`` with the
+secant matrix ``S_ij = B_ijkl q_k q_l``. Its diagonal joins each oscillator's stiffness (for a
+uniform in-plane stress it *is* Berger's tension term), the off-diagonal rest ``R = N - diag(S) q``
+is a force held over the step; both are taken at the mean of the step start and the predicted end
+(predictor-corrector). The forward sensitivities differentiate exactly this integrator
+(:meth:`FvKModal.simulate_tangent`, checked against complex steps).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from wingopt.errors import InputError
+from wingopt.estimation.realistic.berger_modal import BergerModal, oscillator_step
+from wingopt.estimation.realistic.tangent import _step
+from wingopt.membrane import MembraneModel
+from wingopt.membrane.fvk import FvKMembrane
+from wingopt.membrane.fvk_modal import cubic_tensor
+
+__all__ = ["FvKModal"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class FvKModal(BergerModal):
+    """Modal membrane with FvK's exact cubic stiffness on its ``cubic_modes`` lowest modes.
+
+    Attributes (besides :class:`BergerModal`'s)
+    ---------------------------------------------
+    tensor : ndarray ``(r^2, r^2)``
+        ``B[(i, j), (k, l)]``, fully symmetric (a potential's fourth derivative).
+    diag_tensor : ndarray ``(r, r, r)``
+        ``B[i, i, k, l]`` (the secant diagonal's quadratic form).
+    """
+
+    tensor: np.ndarray | None = None
+    diag_tensor: np.ndarray | None = None
+
+    @classmethod
+    def build(
+        cls,
+        model: MembraneModel,
+        modes: int = 48,
+        dt: float | None = None,
+        substeps: int = 1,
+        cubic_modes: int = 16,
+    ) -> FvKModal:
+        """The ``modes`` lowest modes of ``model`` (all integrated), the ``cubic_modes`` lowest with
+        FvK's cubic stiffness (``cubic_modes^2 / 2`` in-plane solves on ``model``'s mesh)."""
+        bm = BergerModal.build(model, modes, dt=dt, substeps=substeps)
+        r = cubic_modes
+        if not (isinstance(r, (int, np.integer)) and 1 <= r <= bm.m):
+            raise InputError(f"cubic_modes = {r!r}: expected an integer in [1, {bm.m}]")
+        fvk = FvKMembrane(model.problem)
+        if fvk.n != model.n:  # pragma: no cover - same problem, same mesh
+            raise InputError(f"FvK model: {fvk.n} dofs, expected {model.n}")
+        B = cubic_tensor(fvk, bm.shapes[:, :r]).reshape(r, r, r, r)
+        idx = np.arange(r)
+        base = {f.name: getattr(bm, f.name) for f in dataclasses.fields(BergerModal)}
+        return cls(**base, tensor=B.reshape(r * r, r * r), diag_tensor=np.ascontiguousarray(B[idx, idx]))
+
+    @property
+    def cubic_modes(self) -> int:
+        return self.diag_tensor.shape[0]
+
+    def cubic_force(self, q: np.ndarray) -> np.ndarray:
+        """``N(q)`` ``(..., m)`` (zero beyond the cubic modes)."""
+        d, R = self._secant(q)
+        out = np.zeros(np.shape(q), dtype=np.result_type(q, float))
+        r = self.cubic_modes
+        out[..., :r] = d * q[..., :r] + R
+        return out
+
+    def _secant(self, q):
+        """Secant diagonal ``d`` and off-diagonal force ``R`` on the cubic modes (``(..., r)`` each)."""
+        r = self.cubic_modes
+        a = q[..., :r]
+        aa = (a[..., :, None] * a[..., None, :]).reshape(a.shape[:-1] + (r * r,))
+        S = (aa @ self.tensor).reshape(a.shape[:-1] + (r, r))
+        d = np.einsum("...ii->...i", S)
+        return d, np.einsum("...ij,...j->...i", S, a) - d * a
+
+    # -- dynamics --------------------------------------------------------------------------
+    def simulate(self, q0, v0, forces, ex, ey, damping=1.0, nonlinear: bool = True):
+        """Modal displacements ``(N + 1, ..., m)`` at every sample (as :meth:`BergerModal.simulate`;
+        ``nonlinear=False``: the linear model, identical to the Berger model's)."""
+        if not nonlinear:
+            return super().simulate(q0, v0, forces, ex, ey, damping, nonlinear=False)
+        forces = np.asarray(forces)
+        N, m, r = forces.shape[0], self.m, self.cubic_modes
+        dtype = np.result_type(q0, v0, forces, ex, ey, damping, float)
+        q = np.array(q0, dtype=dtype)
+        v = np.array(v0, dtype=dtype)
+        ex = np.asarray(ex, dtype=dtype)[..., None]
+        ey = np.asarray(ey, dtype=dtype)[..., None]
+        c = self._coefficients(ex[..., 0], ey[..., 0], np.asarray(damping, dtype=dtype))
+        nu, C = self.model.problem.material.poisson_ratio, self.stiffness_c
+        k0 = C * ((ex + nu * ey) * self.kx + (ey + nu * ex) * self.ky)
+        h = self.dt / self.substeps
+        e = np.exp(-0.5 * c * h)
+        shape = np.broadcast_shapes(q.shape[:-1], forces.shape[1:-1], k0.shape[:-1])
+        Q = np.empty((N + 1,) + shape + (m,), dtype=dtype)
+        Q[0] = q
+
+        def stiff(q):
+            d, R = self._secant(q)
+            kk = np.array(np.broadcast_to(k0, shape + (m,)), dtype=dtype)
+            kk[..., :r] += d
+            Rf = np.zeros(shape + (m,), dtype=dtype)
+            Rf[..., :r] = R
+            return kk, Rf
+
+        with np.errstate(over="ignore", invalid="ignore"):  # a diverging trial step gives non-finite costs
+            for k in range(N):
+                u = forces[k]
+                for _ in range(self.substeps):
+                    k1, R1 = stiff(q)
+                    qp, _ = oscillator_step(q, v, u - R1, k1, c, h, e)
+                    k2, R2 = stiff(qp)
+                    q, v = oscillator_step(q, v, u - 0.5 * (R1 + R2), 0.5 * (k1 + k2), c, h, e)
+                Q[k + 1] = q
+        return Q
+
+    def simulate_tangent(self, q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforces, nonlinear: bool = True):
+        """Trajectory ``(N+1, m)`` and its exact tangents ``(N+1, P, m)``; arguments as
+        :func:`~wingopt.estimation.realistic.tangent.simulate_tangent`."""
+        if not nonlinear:
+            return super().simulate_tangent(q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforces, False)
+        mat = self.model.problem.material
+        nu, C, h = mat.poisson_ratio, self.stiffness_c, self.dt / self.substeps
+        kx, ky, m, r = self.kx, self.ky, self.m, self.cubic_modes
+        k0 = C * ((ex + nu * ey) * kx + (ey + nu * ex) * ky)
+        k0x, k0y = C * (kx + nu * ky), C * (ky + nu * kx)
+        visc = mat.viscous / mat.areal_density + mat.kelvin_voigt * k0
+        a = 0.5 * damping * visc
+        e = np.exp(-a * h)
+        dex, dey, dd = dpar
+        dk0 = np.outer(dex, k0x) + np.outer(dey, k0y)
+        da = 0.5 * (np.outer(dd, visc) + damping * mat.kelvin_voigt * dk0)
+        T, Bd = self.tensor, self.diag_tensor
+        N, P = forces.shape[0], dq0.shape[0]
+        Q, dQ = np.empty((N + 1, m)), np.empty((N + 1, P, m))
+        q, v, dq, dv = np.array(q0, float), np.array(v0, float), np.array(dq0, float), np.array(dv0, float)
+        Q[0], dQ[0] = q, dq
+
+        def stiff(q, dq):
+            x, dx = q[:r], dq[:, :r]
+            S = (np.outer(x, x).ravel() @ T).reshape(r, r)
+            d = np.diag(S).copy()
+            ddiag = 2.0 * dx @ (Bd @ x).T  # d/dq of B_iikl x_k x_l along each direction
+            kk, dk = k0.copy(), dk0.copy()
+            kk[:r] += d
+            dk[:, :r] += ddiag
+            R, dR = np.zeros(m), np.zeros((P, m))
+            R[:r] = S @ x - d * x
+            dR[:, :r] = 3.0 * dx @ S - ddiag * x - d * dx  # S symmetric: dN = 3 S dx
+            return kk, dk, R, dR
+
+        for j in range(N):
+            u, du = forces[j], dforces(j)
+            for _ in range(self.substeps):
+                k1, dk1, R1, dR1 = stiff(q, dq)
+                qp, _, dqp, _ = _step(q, v, u - R1, k1, a, e, h, dq, dv, du - dR1, dk1, da)
+                k2, dk2, R2, dR2 = stiff(qp, dqp)
+                q, v, dq, dv = _step(
+                    q,
+                    v,
+                    u - 0.5 * (R1 + R2),
+                    0.5 * (k1 + k2),
+                    a,
+                    e,
+                    h,
+                    dq,
+                    dv,
+                    du - 0.5 * (dR1 + dR2),
+                    0.5 * (dk1 + dk2),
+                    da,
+                )
+            Q[j + 1], dQ[j + 1] = q, dq
+        return Q, dQ
