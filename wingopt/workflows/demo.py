@@ -23,6 +23,7 @@ from pathlib import Path
 from wingopt import __version__
 from wingopt.results import ResultDirectory, write_json
 from wingopt.results.report import Report
+from wingopt.workflows.demo_real import REAL_MODELS, REAL_PRESTRAIN, real_rows, real_section, run_real_membrane
 
 __all__ = ["DemoConfig", "run_demo", "SEED_TABLE_5_4", "SEED_TABLE_6_2", "SEED_JEKF_1PCT"]
 
@@ -46,10 +47,13 @@ class DemoConfig:
     seed: int = 0
     jekf_modes: int = 60
     identify_t_end: float = 1.0
+    real_membrane: bool = True
+    real_truth_nodes: tuple[int, int] = (49, 25)
+    real_prestrain: tuple[float, float] = REAL_PRESTRAIN
 
     @classmethod
     def quick(cls) -> DemoConfig:
-        return cls(plate_nodes=(7, 31), t_end=0.5, identify_t_end=0.5, jekf_modes=30)
+        return cls(plate_nodes=(7, 31), t_end=0.5, identify_t_end=0.5, jekf_modes=30, real_truth_nodes=(33, 17))
 
 
 def _progress(total: int, enabled: bool | None):
@@ -88,7 +92,7 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
     plate = load_problem("plate")
     membrane = load_problem("membrane")
     summary: dict = {"version": __version__, "config": cfg.__dict__, "morph": {}, "identify": {}, "tables": {}}
-    bar = _progress(len(SHAPES) * 3 + len(LOADS) * 3 + 2, progress)
+    bar = _progress(len(SHAPES) * 3 + len(LOADS) * 3 + 2 + len(REAL_MODELS) * cfg.real_membrane, progress)
     with ResultDirectory(out_dir) as tmp:
         # -- 1. morphing ----------------------------------------------------------------------
         for shape in SHAPES:
@@ -126,6 +130,9 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
                 write_identify_outputs(run, tmp / "identify" / f"{load}-{method}", plots=(method == "mhe"))
                 summary["identify"][load][method] = run.summary()
                 bar.update()
+        # -- 2b. a real membrane: FvK truth, prestrain off the file's ---------------------------------
+        if cfg.real_membrane:
+            summary["real_membrane"] = run_real_membrane(membrane, cfg, tmp / "real-membrane", bar)
         # -- 3. reference tables -----------------------------------------------------------------
         bar.set_description("reference tables")
         mem = MembraneModel.from_problem(membrane, (25, 13))
@@ -202,6 +209,10 @@ def summary_table(summary: dict) -> str:
     lines.append(f"  {'load':5} {'MHE':>8} {'tuned JEKF':>11} {'seed JEKF':>10} {'lift (N)':>20} {'true lift':>10}")
     for r in _identify_rows(summary):
         lines.append(f"  {r[0]:5} {r[1]:8.4f} {r[2]:11.4f} {r[3]:10.4f} {r[6]:>20} {r[7]:>10}")
+    if summary.get("real_membrane"):
+        lines.append("real membrane (FvK truth, prestrain off the file's, L1, 1 % noise): lift error / lift, band")
+        for r in real_rows(summary):
+            lines.append(f"  {r[0]:26} {r[2]:>9} {r[3]:>8}  covers {r[4]:5}  chi2/datum {r[5]:>6}  adequate {r[6]}")
     lines.append(f"wall time {summary['wall_s']:.0f} s")
     return "\n".join(lines)
 
@@ -209,8 +220,11 @@ def summary_table(summary: dict) -> str:
 def _warnings(summary: dict) -> list[tuple[str, str]]:
     """``(run, warning)`` for every warning of every run in the demo's summary."""
     out = []
-    for section in ("morph", "identify"):
+    for section in ("morph", "identify", "real_membrane"):
         for case, runs in summary.get(section, {}).items():
+            if section == "real_membrane":  # one level less: {model: summary}
+                out += [(f"real membrane {case}", w) for w in (runs or {}).get("warnings", [])]
+                continue
             for method, s in runs.items():
                 out += [(f"{section} {case} {method}", w) for w in (s or {}).get("warnings", [])]
     return out
@@ -263,6 +277,8 @@ def _report(tmp: Path, summary: dict, cfg: DemoConfig) -> Report:
                           ("errors.png", "error histories")):  # fmt: skip
             if (d / name).exists():
                 rep.figure(d / name, f"{load}, MHE: {cap}")
+    if summary.get("real_membrane"):
+        real_section(rep, tmp, summary, cfg)
     rep.warnings(_warnings(summary))
     rep.heading("3. The seed's reference tables")
     t62, t54 = summary["tables"]["membrane_6_2"], summary["tables"]["plate_5_4"]

@@ -4,9 +4,10 @@ The linear moving-horizon estimator (:mod:`wingopt.estimation.mhe`) is kept unch
 are the seed protocol's). This check runs after it and only *adds*: the chi-square per datum of
 its deflection history against the data, per segment (:func:`.adequacy.assess`), the samples it
 left out (a skipped load onset, with the chi-square the MHE measured there) reported with their
-reason and a warning line, and, when the data the estimate used contradict the linear model,
-``model_adequate = False``, a warning and the lift band widened by the square root of their worst
-segment chi-square per datum: a confident wrong answer becomes a flagged answer.
+reason and a warning line, and, when data contradict the linear model (a misfit of the samples
+used, or samples left out because the model could not explain them), ``model_adequate = False``,
+a warning and the lift band widened by the square root of the worst chi-square per datum: a
+confident wrong answer becomes a flagged answer.
 """
 
 from __future__ import annotations
@@ -52,16 +53,20 @@ def check_mhe_result(
             worst = max(worst, worst_onset)
     for rs in result.info.get("restarts") or []:
         dropped.append({"restart": rs, "reason": "estimate restarted on data inconsistent with it"})
-    # The band answers for the samples the estimate used: their misfit widens it. Samples the MHE
-    # left out (an onset it could not explain) did not enter the estimate; they are reported, with
-    # their misfit, as a warning of their own rather than blown into the band.
-    adequate = ad.adequate
-    inflation = ad.inflation if not adequate else 1.0
+    # Samples the MHE left out because the linear model could not explain them are data the model
+    # contradicts: on a real (stiffening) membrane they are the bubble's ringing, and the steady
+    # remainder then fits a wrong load with a tight band. So a left-out start flags the result and its
+    # misfit widens the band, like a misfit of the samples used (the workflow may add a model-form
+    # term on top: :func:`wingopt.workflows.identify.identify`).
+    onset_misfit = bool(dropped and "samples" in dropped[0])
+    adequate = ad.adequate and not onset_misfit
+    inflation = 1.0 if adequate else float(np.sqrt(max(worst, ad.inflation**2, 1.0)))
     warnings = []
     if not adequate:
         warnings.append(
-            f"linear model inadequate: chi-square per datum {ad.chi2_per_datum:.2f} on the samples used; "
-            f"band widened x{inflation:.2f}; try --model nonlinear"
+            f"linear model inadequate: chi-square per datum {ad.chi2_per_datum:.2f} on the samples used"
+            + (f", {worst:.3g} on the {dropped[0]['samples']} samples left out" if onset_misfit else "")
+            + f"; band widened x{inflation:.2f}; try --model fvk"
         )
     if dropped and "samples" in dropped[0]:
         d = dropped[0]
