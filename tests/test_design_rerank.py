@@ -72,3 +72,25 @@ def test_named_design_time_loads():
             named_load(bad, W, H)
     with pytest.raises(InputError, match="shortlist"):
         MonteCarloSettings(shortlist=0)
+
+
+def test_adopt_redoes_the_predictions(small_design):
+    prob, res_a = small_design
+    from wingopt.design.rerank import Reranked, adopt
+
+    with pytest.raises(InputError, match="risk"):
+        adopt(res_a, Reranked([res_a.layout], np.zeros(1), np.zeros(1), np.zeros(1), 0, []))
+    info = InformationSettings(modes=12, state_modes=4, t_end=0.06, window_s=0.02)
+    res = design_sensors(
+        prob, 2, "sizes=0.035x0.0175;step=3", DesignSettings(information=info, nominal_count=2, rank=6)
+    )
+    lays = shortlist(res, 3)
+    fake = Reranked(lays, np.array([res.risk.value(x) for x in lays]), np.array([0.5, 0.4, 0.6]), np.zeros(3), 1, [])
+    new = adopt(res, fake)
+    assert np.array_equal(new.layout, lays[1]) and np.array_equal(res.layout, lays[0])  # a copy
+    assert new.value == pytest.approx(res.risk.value(lays[1])) and new.value >= res.value - 1e-12
+    assert new.predictions["risk_relative_load_error"] == pytest.approx(new.value)
+    assert new.predictions["montecarlo_relative_load_error"] == 0.4
+    rel = new.relaxation
+    assert rel["bound"] == res.relaxation["bound"] and rel["chosen_reduced"] >= rel["bound"] - 1e-9
+    assert new.baselines["montecarlo"]["best"] == 1

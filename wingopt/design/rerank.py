@@ -27,7 +27,7 @@ import numpy as np
 from wingopt.design.montecarlo import IdentifyTask, run_tasks
 from wingopt.errors import InputError
 
-__all__ = ["MonteCarloSettings", "Reranked", "shortlist", "monte_carlo_scores", "rerank"]
+__all__ = ["MonteCarloSettings", "Reranked", "shortlist", "monte_carlo_scores", "rerank", "adopt"]
 
 log = logging.getLogger(__name__)
 
@@ -165,3 +165,36 @@ def rerank(result, settings: MonteCarloSettings | None = None, mapper: Callable 
     log.info("Monte Carlo: %d layouts x %d loads x %d seeds", len(lays), len(s.loads), len(s.seeds))
     scores, spread, recs = monte_carlo_scores(result.problem, rects, s, mapper)
     return Reranked(lays, pred, scores, spread, int(np.argmin(scores)), recs)
+
+
+def adopt(result, reranked: Reranked):
+    """A copy of a ``risk`` design with the Monte Carlo winner as its layout (predictions redone)."""
+    import dataclasses
+
+    from wingopt.design.engine import _reduced_value
+
+    if result.settings.criterion != "risk":
+        raise InputError(f"criterion = {result.settings.criterion!r}: Monte Carlo re-ranking adopts risk designs only")
+    new = np.asarray(reranked.layouts[reranked.best])
+    risk, linear = result.risk, result.linear
+    pred = dict(result.predictions)
+    pred["risk_relative_load_error"] = float(risk.value(new))
+    pred["risk_per_nominal"] = [float(v) for v in risk.per_nominal(risk.layout_sum(new)[None], new.size)[0]]
+    pred["a_relative_posterior_std"] = float(linear.value(new))
+    pred["montecarlo_relative_load_error"] = float(reranked.scores[reranked.best])
+    rel = dict(result.relaxation)
+    red = _reduced_value(linear, *linear.reduced(result.settings.rank)[:3], new)
+    rel.update(
+        chosen_reduced=red, gap=red - rel["bound"], relative_gap=(red - rel["bound"]) / abs(red) if red else None
+    )
+    base = dict(result.baselines)
+    base["montecarlo"] = reranked.summary()
+    return dataclasses.replace(
+        result,
+        layout=new,
+        value=float(risk.value(new)),
+        predictions=pred,
+        relaxation=rel,
+        baselines=base,
+        risk_layout=new,
+    )
