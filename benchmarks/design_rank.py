@@ -129,6 +129,7 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=3, help="noise seeds per held-out load (0..)")
     ap.add_argument("--mc-loads", default=MC_LOADS, help="design-time loads of the Monte Carlo criterion")
     ap.add_argument("--broad-loads", default=BROAD_LOADS, help="extra (localised) loads of the broadened MC")
+    ap.add_argument("--edge-loads", default="", help="edge-heavy loads (edge:SEED:K) of an edge-aware MC variant")
     ap.add_argument("--mc-seeds", type=int, default=1, help="noise seeds of the Monte Carlo criterion (100..)")
     ap.add_argument("--noise", type=float, default=0.01)
     ap.add_argument("--t-end", type=float, default=0.3)
@@ -152,8 +153,9 @@ def main() -> None:
         layouts["default"] = cands.rects[default_idx]
     held, mc = args.loads.split(","), args.mc_loads.split(",")
     broad = [L for L in args.broad_loads.split(",") if L]
+    edge = [L for L in args.edge_loads.split(",") if L]
     runs = [(L, s) for L in held for s in range(args.seeds)]
-    runs += [(L, s) for L in mc + broad for s in range(100, 100 + args.mc_seeds)]
+    runs += [(L, s) for L in mc + broad + edge for s in range(100, 100 + args.mc_seeds)]
     recs = measure(problem, layouts, runs, args, out)
 
     def mean_err(name, loads):
@@ -166,6 +168,8 @@ def main() -> None:
     preds["montecarlo"] = np.array([mean_err(n, mc) for n in names])
     if broad:
         preds["montecarlo-broad"] = np.array([mean_err(n, mc + broad) for n in names])
+    if edge:
+        preds["montecarlo-edge"] = np.array([mean_err(n, mc + edge) for n in names])
     rho = {k: float(st.spearmanr(v, meas)[0]) for k, v in preds.items()}
     per_load = {L: [mean_err(n, [L]) for n in names] for L in held}
     rho_load = {k: {L: float(st.spearmanr(v, per_load[L])[0]) for L in held} for k, v in preds.items()}

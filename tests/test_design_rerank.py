@@ -94,3 +94,28 @@ def test_adopt_redoes_the_predictions(small_design):
     rel = new.relaxation
     assert rel["bound"] == res.relaxation["bound"] and rel["chosen_reduced"] >= rel["bound"] - 1e-9
     assert new.baselines["montecarlo"]["best"] == 1
+
+
+def test_edge_loads_shape():
+    from wingopt.design.priors import edge_loads
+
+    prob = load_problem("membrane")
+    W, H = prob.width, prob.height
+    loads = edge_loads(W, H, 6, 9)
+    assert len({P.description.split(",")[0] for P in loads}) >= 2  # more than one edge drawn
+    for k, P in enumerate(loads):
+        pts = (np.array([0.0, 0.03, 0.1]), np.array([0.02, 0.0, 0.05]))
+        assert np.array_equal(named_load(f"edge:9:{k}", W, H)(*pts), P(*pts))
+        where = P.description.split(",")[0].replace("edge-heavy at ", "")
+        edge = ("x = 0", "x = W", "y = 0", "y = L").index(where)
+        span = W if edge < 2 else H
+        # the envelope along the normal of its edge: 1 on the edge, exponential (env(2t) = env(t)^2),
+        # with a decay length delta * span, delta in [0.1, 0.4]
+        g = smooth_loads(W, H, k + 1, 9 + 7919, 0.2 * W, mean=0.0, spread=1.0, amplitude=1.0)[k]
+        t = np.array([0.0, 0.1, 0.2]) * span
+        x, y = [(t, 0.5 * H + 0 * t), (W - t, 0.5 * H + 0 * t), (0.5 * W + 0 * t, t), (0.5 * W + 0 * t, H - t)][edge]
+        env = P(x, y) / (200.0 * (1.0 + 0.5 * g(x, y)))
+        assert env[0] == pytest.approx(1.0, rel=1e-12) and env[2] == pytest.approx(env[1] ** 2, rel=1e-9)
+        assert 0.1 <= -0.1 / np.log(env[1]) <= 0.4
+    with pytest.raises(InputError, match="load ="):
+        named_load("edge:9", W, H)

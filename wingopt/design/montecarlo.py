@@ -8,7 +8,8 @@ changes which quadratic forms of the same deflection history are read.
 
 Loads are named, so a task stays small: ``L1``, ``L2``, ``L3``, ``consistency``, ``leading-edge``
 and ``smooth:SEED:K`` (draw ``K`` of :func:`~wingopt.design.priors.smooth_loads` with ``SEED``;
-``smooth:SEED:K:ELL`` with the length scale ``ELL`` as a fraction of the chord, default 0.3).
+``smooth:SEED:K:ELL`` with the length scale ``ELL`` as a fraction of the chord, default 0.3) and
+``edge:SEED:K`` (draw ``K`` of the edge-heavy :func:`~wingopt.design.priors.edge_loads`).
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wingopt.design.priors import leading_edge_load, smooth_loads
+from wingopt.design.priors import edge_loads, leading_edge_load, smooth_loads
 from wingopt.errors import InputError
 from wingopt.estimation.data import Measurements
 from wingopt.estimation.mhe import MHESettings
@@ -61,7 +62,18 @@ def named_load(name: str, width: float, height: float) -> PressureLoad:
         except ValueError:
             raise InputError(f"load = {name!r}: expected smooth:SEED:K or smooth:SEED:K:ELL (ELL > 0)") from None
         return smooth_loads(width, height, k + 1, seed, frac * width)[k]
-    raise InputError(f"load = {name!r}: expected L1, L2, L3, consistency, leading-edge or smooth:SEED:K[:ELL]")
+    if name.startswith("edge:"):
+        try:
+            _, seed, k = name.split(":")
+            seed, k = int(seed), int(k)
+            if k < 0:
+                raise ValueError
+        except ValueError:
+            raise InputError(f"load = {name!r}: expected edge:SEED:K") from None
+        return edge_loads(width, height, k + 1, seed)[k]
+    raise InputError(
+        f"load = {name!r}: expected L1, L2, L3, consistency, leading-edge, smooth:SEED:K[:ELL] or edge:SEED:K"
+    )
 
 
 def layout_specs(rects, prefix: str = "S") -> tuple[StretchSensorSpec, ...]:
