@@ -51,3 +51,16 @@ def test_design_cli_bad_input(tmp_path, capsys):
     assert "step" in capsys.readouterr().err
     assert main(["design-sensors", "membrane", "--count", "2", "--noise", "0", "--out", out]) == 2
     assert "noise" in capsys.readouterr().err
+
+
+def test_design_cli_montecarlo(tmp_path, capsys):
+    out = tmp_path / "mc"
+    args = ["design-sensors", "membrane", "--count", "2", "--candidates", CANDS, "--t-end", "0.1", "--nominal", "1"]
+    assert main(args + ["--montecarlo", "2", "--out", str(out), "--no-plots", "-q"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    mc = summary["baselines"]["montecarlo"]
+    assert len(mc["layouts"]) == 2 and mc["identifications"] == 2 * 4 * 2  # layouts x loads x seeds
+    assert summary["predictions"]["montecarlo_relative_load_error"] == min(mc["montecarlo"])
+    assert 0 < min(mc["montecarlo"]) < 2
+    assert main(args + ["--criterion", "a", "--montecarlo", "2", "--out", str(tmp_path / "x")]) == 2
+    assert "montecarlo" in capsys.readouterr().err

@@ -53,6 +53,14 @@ def register(sub, common) -> None:
     p.add_argument("--aggregate", choices=("mean", "max"), default="mean", help="over the nominal loads")
     p.add_argument("--noise", type=float, default=1.0, help="noise in PERCENT of each sensor's peak (default 1)")
     p.add_argument("--t-end", type=float, default=1.0, help="record length, s (default 1)")
+    p.add_argument(
+        "--montecarlo",
+        type=int,
+        default=0,
+        metavar="N",
+        help="re-rank the design's N best layouts by the estimator's mean error on the nominal loads (risk only; "
+        "about 8 N identifications)",
+    )
     p.add_argument("--allow-overlap", action="store_true", help="let chosen rectangles overlap")
     p.add_argument("--out", required=True, help="output directory (replaced atomically)")
     p.add_argument("--write-problem", metavar="NEW.toml", help="also write the problem file with the designed sensors")
@@ -104,7 +112,14 @@ def run(args) -> int:
             noise=args.noise / 100.0, t_end=args.t_end, window_s=min(0.2, args.t_end) if args.t_end > 0 else 0.2
         ),
     )
+    if args.montecarlo < 0 or (args.montecarlo and args.criterion != "risk"):
+        raise InputError(f"montecarlo = {args.montecarlo}: expected a positive short-list size, with --criterion risk")
     result = design_sensors(problem, args.count, args.candidates, settings)
+    if args.montecarlo:
+        from wingopt.design.rerank import MonteCarloSettings, adopt, rerank
+
+        mcs = MonteCarloSettings(shortlist=args.montecarlo, noise=args.noise / 100.0, t_end=args.t_end)
+        result = adopt(result, rerank(result, mcs))
     summary = result.summary()
     header = (
         f"{result.count} sensors designed by wingopt design-sensors ({args.criterion}) for {problem.name};\n"

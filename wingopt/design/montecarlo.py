@@ -7,7 +7,9 @@ process (fine mesh, from the protocol's bubble) and reused for every layout: a l
 changes which quadratic forms of the same deflection history are read.
 
 Loads are named, so a task stays small: ``L1``, ``L2``, ``L3``, ``consistency``, ``leading-edge``
-and ``smooth:SEED:K`` (draw ``K`` of :func:`~wingopt.design.priors.smooth_loads` with ``SEED``).
+and ``smooth:SEED:K`` (draw ``K`` of :func:`~wingopt.design.priors.smooth_loads` with ``SEED``;
+``smooth:SEED:K:ELL`` with the length scale ``ELL`` as a fraction of the chord, default 0.3) and
+``edge:SEED:K`` (draw ``K`` of the edge-heavy :func:`~wingopt.design.priors.edge_loads`).
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wingopt.design.priors import leading_edge_load, smooth_loads
+from wingopt.design.priors import edge_loads, leading_edge_load, smooth_loads
 from wingopt.errors import InputError
 from wingopt.estimation.data import Measurements
 from wingopt.estimation.mhe import MHESettings
@@ -52,12 +54,26 @@ def named_load(name: str, width: float, height: float) -> PressureLoad:
         return leading_edge_load(width, height)
     if name.startswith("smooth:"):
         try:
+            _, seed, k, *ell = name.split(":")
+            seed, k = int(seed), int(k)
+            frac = float(ell[0]) if ell else 0.3
+            if k < 0 or len(ell) > 1 or not frac > 0:
+                raise ValueError
+        except ValueError:
+            raise InputError(f"load = {name!r}: expected smooth:SEED:K or smooth:SEED:K:ELL (ELL > 0)") from None
+        return smooth_loads(width, height, k + 1, seed, frac * width)[k]
+    if name.startswith("edge:"):
+        try:
             _, seed, k = name.split(":")
             seed, k = int(seed), int(k)
+            if k < 0:
+                raise ValueError
         except ValueError:
-            raise InputError(f"load = {name!r}: expected smooth:SEED:K") from None
-        return smooth_loads(width, height, k + 1, seed)[k]
-    raise InputError(f"load = {name!r}: expected L1, L2, L3, consistency, leading-edge or smooth:SEED:K")
+            raise InputError(f"load = {name!r}: expected edge:SEED:K") from None
+        return edge_loads(width, height, k + 1, seed)[k]
+    raise InputError(
+        f"load = {name!r}: expected L1, L2, L3, consistency, leading-edge, smooth:SEED:K[:ELL] or edge:SEED:K"
+    )
 
 
 def layout_specs(rects, prefix: str = "S") -> tuple[StretchSensorSpec, ...]:
@@ -85,7 +101,7 @@ class IdentifyTask:
 
 
 def _truth(problem: MembraneProblem, load: str, nodes: tuple[int, int], t_end: float):
-    key = (id(problem), problem.nodes, load, tuple(nodes), t_end)
+    key = (problem, load, tuple(nodes), t_end)  # by value: tasks arrive unpickled (new objects)
     if key not in _CACHE:
         P = named_load(load, problem.width, problem.height)
         model = MembraneModel.from_problem(problem, tuple(nodes))
@@ -102,7 +118,7 @@ def _truth(problem: MembraneProblem, load: str, nodes: tuple[int, int], t_end: f
 
 
 def _estimator_model(problem: MembraneProblem, specs, nodes) -> MembraneModel:
-    key = ("model", id(problem), problem.nodes, tuple(s.rect for s in specs), nodes)
+    key = ("model", problem, tuple(s.rect for s in specs), nodes)
     if key not in _CACHE:
         prob = problem.with_sensors(specs)
         if nodes is not None:

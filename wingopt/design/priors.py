@@ -26,7 +26,7 @@ from wingopt.errors import InputError
 from wingopt.fe import Cells
 from wingopt.membrane import MembraneModel, PressureLoad
 
-__all__ = ["LoadPrior", "tikhonov_prior", "gp_prior", "smooth_loads", "leading_edge_load", "PRIORS"]
+__all__ = ["LoadPrior", "tikhonov_prior", "gp_prior", "smooth_loads", "edge_loads", "leading_edge_load", "PRIORS"]
 
 PRIORS = ("tikhonov", "gp")
 
@@ -121,3 +121,35 @@ def leading_edge_load(width: float, height: float, amplitude: float = 200.0, dec
         return amplitude * np.exp(-x / (decay * width)) * np.sin(np.pi * y / height)
 
     return PressureLoad("leading-edge", pressure, f"{amplitude:g} exp(-x/({decay:g} W)) sin(pi eta)")
+
+
+def edge_loads(
+    width: float,
+    height: float,
+    count: int,
+    seed: int,
+    decay: tuple[float, float] = (0.1, 0.4),
+    amplitude: float = 200.0,
+) -> list[PressureLoad]:
+    """``count`` random edge-heavy pressures ``A exp(-d / (delta D)) (1 + 0.5 g(x, y))``.
+
+    ``d`` is the distance from one of the four frame edges (drawn uniformly), ``D`` the membrane's
+    size across that edge, ``delta`` uniform in ``decay`` and ``g`` a unit-variance SE-GP draw of
+    length 0.2 chord. A generic family of what the smooth draws miss (an edge peak, a leading- or
+    trailing-edge suction): large where the fixed-edge load space cannot follow, not zero on the frame.
+    """
+    if count < 1:
+        raise InputError(f"count = {count!r}: expected at least one load")
+    rng = np.random.default_rng(seed)
+    g = smooth_loads(width, height, count, seed + 7919, 0.2 * width, mean=0.0, spread=1.0, amplitude=1.0)
+    out = []
+    for k in range(count):
+        edge, delta = int(rng.integers(4)), float(rng.uniform(*decay))
+
+        def pressure(x, y, edge=edge, delta=delta, g=g[k]):
+            d = (x, width - x, y, height - y)[edge]
+            return amplitude * np.exp(-d / (delta * (width if edge < 2 else height))) * (1.0 + 0.5 * g(x, y))
+
+        where = ("x = 0", "x = W", "y = 0", "y = L")[edge]
+        out.append(PressureLoad(f"edge{seed}-{k}", pressure, f"edge-heavy at {where}, decay {delta:.2f}, seed {seed}"))
+    return out
