@@ -1,0 +1,394 @@
+"""Streaming identification with the nonlinear (Berger) membrane: an extended Kalman filter.
+
+:class:`NonlinearStreamingEstimator` has the shape of
+:class:`~wingopt.estimation.streaming.StreamingEstimator` (``push(t, y) -> Estimate``) on the
+realistic estimator's model (:mod:`wingopt.estimation.realistic`): the modal Berger membrane
+(48 modes of the 25x13 mesh, all dynamic, predictor-corrector tension, sub-steps of at most
+0.5 ms), the 15 smoothest load shapes with their prior, the prestrains and the damping factor
+(the problem file's ``free_parameters``) with their priors.
+
+Joint state (scaled so that every prior std is 1): modal displacements and velocities, load-shape
+coefficients, free parameters. Per sample, one extended-Kalman step: the state is propagated
+over the sample by the Berger map with its exact tangent
+(:class:`~wingopt.estimation.streaming.berger_step.BergerSample`), the covariance by
+``F P F^T`` plus a small random walk of the load coefficients (``load_walk`` prior stds per
+sqrt(s): the load may drift, the estimate forgets slowly); the measurement update linearises the
+quadratic sensors ``s_i = q^T C_i q`` at the prediction. An EKF with no process noise on the
+state is one Gauss–Newton step per sample on the batch problem with the past summarised in a
+Gaussian arrival cost (the filter's mean and covariance).
+
+Prior and start (``Estimate.phase``):
+
+* ``waiting`` — fewer than ``min_samples`` samples: no estimate;
+* ``provisional`` — from the prior (the problem's initial bubble, std as the batch: the 12 lowest
+  modes' initial states uncertain, the others at the bubble's projection; load along the
+  smoothest shape at ``initial_load``, its sign; prestrains and damping at the file's), with the
+  noise level of the samples so far (:func:`~wingopt.estimation.noise.estimate_noise_std`,
+  second differences: an overestimate while the start-up transient rings);
+* ``startup`` — at ``startup_s`` (default 0.3 s: the first mode's transient has decayed by e^-10),
+  the noise level is estimated once more from the buffered samples and the filter is re-run over
+  them from the prior (a one-off cost of ``startup_s / dt`` filter steps); the buffer is dropped;
+* ``tracking`` — one filter step per sample; no buffer, nothing grows.
+
+With ``noise_std`` given (argument or problem file) there is no provisional phase.
+
+Band: ``lift_std`` from the filter covariance, widened by the square root of the chi-square per
+datum when the data do not fit (as the batch). Adequacy: the normalised innovations
+``nu^T S^-1 nu`` of the last ``window_s`` seconds against ``chi2_{1-a}(n)`` (``a`` =
+:data:`~wingopt.estimation.mhe.consistency.SIGNIFICANCE`); ``chi2_per_datum`` is their mean.
+Work per sample: one tangent step on ``(n, 48)`` arrays and ``O(n^3)`` dense covariance algebra,
+``n = 2*48 + 15 + 3 = 114``; memory: the covariance and a ring of ``window_s / dt`` numbers.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2 as chi2_dist
+
+from wingopt.errors import InputError
+from wingopt.estimation.mhe.consistency import SIGNIFICANCE
+from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
+from wingopt.estimation.realistic.berger_modal import BergerModal
+from wingopt.estimation.realistic.load_model import LoadShapes
+from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior
+from wingopt.estimation.streaming.berger_step import BergerSample
+from wingopt.estimation.streaming.nonlinear_start import batch_start
+from wingopt.estimation.streaming.types import Estimate
+from wingopt.membrane import MembraneModel, bubble
+
+__all__ = ["NonlinearStreamSettings", "NonlinearStreamingEstimator"]
+
+log = logging.getLogger(__name__)
+
+_JITTER = 0.01
+
+
+@dataclass(frozen=True)
+class NonlinearStreamSettings:
+    """Settings of :class:`NonlinearStreamingEstimator` (model defaults: the batch realistic estimator's).
+
+    Attributes
+    ----------
+    modes, shapes, state_modes, substeps, substep_s, kappa, prior_power :
+        As :class:`~wingopt.estimation.realistic.RealisticSettings` (all modes dynamic).
+    free : tuple of str or None
+        Free parameters (some of ``prestrain_x, prestrain_y, damping``); ``None``: the problem file's.
+    load_walk : float
+        Random walk of the load coefficients, in prior stds per sqrt(s).
+    min_samples : int
+        Samples before the first estimate (>= 20: the first noise estimate).
+    startup_s : float
+        When the noise level is re-estimated and the filter re-run over the buffered samples (s).
+    window_s : float
+        Window of the innovation chi-square (s).
+    """
+
+    modes: int = 48
+    shapes: int = 15
+    state_modes: int = 12
+    substeps: int = 2
+    substep_s: float = 0.5e-3
+    kappa: float = 1.0
+    prior_power: float = 1.0
+    free: tuple[str, ...] | None = None
+    load_walk: float = 0.02
+    min_samples: int = 20
+    startup_s: float = 0.3
+    window_s: float = 0.1
+
+    def __post_init__(self) -> None:
+        for name in ("modes", "shapes", "state_modes", "substeps"):
+            val = getattr(self, name)
+            if int(val) != val or val < 1:
+                raise InputError(f"nonlinear streaming {name} = {val!r}: expected a positive integer")
+        if int(self.min_samples) != self.min_samples or self.min_samples < 20:
+            raise InputError(f"nonlinear streaming min_samples = {self.min_samples!r}: expected an integer >= 20")
+        for name in ("substep_s", "startup_s", "window_s", "kappa"):
+            val = getattr(self, name)
+            if not (np.isfinite(val) and val > 0):
+                raise InputError(f"nonlinear streaming {name} = {val!r}: expected a positive number")
+        if not (np.isfinite(self.load_walk) and self.load_walk >= 0):
+            raise InputError(f"nonlinear streaming load_walk = {self.load_walk!r}: expected a number >= 0")
+
+
+class NonlinearStreamingEstimator:
+    """Online load and tension estimator on the modal Berger membrane (EKF), see the module docstring.
+
+    Parameters
+    ----------
+    model : MembraneModel
+    settings : NonlinearStreamSettings, optional
+    noise_std : float or array, optional
+        Sensor noise std; default: the problem's ``noise_std``, else estimated from the data.
+    initial_load : float, optional
+        Prior pressure (Pa; its sign and scale); default the problem's ``initial_load``.
+    """
+
+    def __init__(
+        self,
+        model: MembraneModel,
+        settings: NonlinearStreamSettings | None = None,
+        noise_std: np.ndarray | float | None = None,
+        initial_load: float | None = None,
+    ) -> None:
+        self.model = model
+        self.settings = s = settings or NonlinearStreamSettings()
+        problem = model.problem
+        ident = problem.identification
+        self.names = tuple(problem.sensor_names)
+        self.p = len(self.names)
+        self.initial_load = ident.initial_load if initial_load is None else float(initial_load)
+        if self.initial_load == 0 or not np.isfinite(self.initial_load):
+            raise InputError(f"initial_load = {self.initial_load!r}: expected a non-zero pressure (its sign)")
+        sigma = noise_std if noise_std is not None else ident.noise_std
+        self._sigma_given = None if sigma is None else self._check_sigma(sigma)
+        e0 = problem.material.prestrain
+        free = s.free if s.free is not None else getattr(ident, "free_parameters", PARAMETERS)
+        rel = getattr(ident, "prestrain_prior_rel", 0.2)
+        self.prior = ParameterPrior((e0, e0), tuple(free), rel, 1.0, getattr(ident, "damping_prior_rel", 1.0))
+        self.shapes = LoadShapes.build(model, min(s.shapes, model.n), self.initial_load, s.kappa, s.prior_power)
+        self._build(ident.dt)
+        self.count = 0
+        self.phase = "waiting"
+        self.dt: float | None = None
+        self._t_prev: float | None = None
+        self._buf: list[np.ndarray] = []
+        self.noise_source = "given" if self._sigma_given is not None else None
+        self.last: Estimate | None = None
+        self._isf: dict[int, float] = {}
+        self.startup: dict = {}
+
+    # -- model and layout ----------------------------------------------------------------------
+    def _build(self, dt: float) -> None:
+        s, model = self.settings, self.model
+        substeps = max(s.substeps, int(math.ceil(dt / s.substep_s - 1e-9)))
+        bm = BergerModal.build(model, min(s.modes, model.n), dt=dt, substeps=substeps)
+        m, ns, npar = bm.m, self.shapes.count, len(self.prior.free)
+        self.bm, self.m, self.n = bm, m, 2 * m + ns + npar
+        self.ls, self.ps = slice(2 * m, 2 * m + ns), slice(2 * m + ns, self.n)
+        forces = (bm.input_matrix @ self.shapes.shapes).T * self.shapes.prior_std[:, None]
+        self._forces = forces  # modal force per scaled load unknown (ns, m)
+        self.sampler = BergerSample(bm, forces, self.ls, self.ps)
+        self._par_ms = np.array([self.prior.mean_std(name) for name in self.prior.free]).reshape(-1, 2)
+        self._lift = self.shapes.lift_row * self.shapes.prior_std  # lift per scaled load unknown
+
+    def _prior_state(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Prior mean (scaled) and std of the joint state, as the batch's record problem."""
+        bm, problem, m, ms = self.bm, self.model.problem, self.m, min(self.settings.state_modes, self.m)
+        peak = problem.identification.initial_deflection
+        omega = bm.omega()
+        if peak != 0:
+            q = bm.to_modal(bm.model.project(bubble(problem.width, problem.height, peak)))
+            amp = abs(q[0])
+        else:
+            q = np.zeros(m)
+            smax = np.nanmax(np.abs(Y)) if np.isfinite(Y).any() else 1.0
+            amp = float(np.sqrt(smax / np.max(np.abs(bm.sensor_matrices[:, 0, 0]))))
+        sq = np.maximum(np.abs(q), amp * omega[0] / omega)
+        sv = amp * omega[0] * np.ones(m)
+        self._D = np.concatenate([sq, sv])  # physical state = D * scaled state
+        x = np.zeros(self.n)
+        x[:m] = q / sq
+        # the load starts along the smoothest shape at the prior pressure (its sign): the sensors
+        # are quadratic, a zero load and state would give the filter no gradient
+        x[self.ls.start] = self.initial_load * self.shapes.lift_row[0] / self.shapes.prior_std[0]
+        std = np.ones(self.n)
+        std[ms:m] = std[m + ms : 2 * m] = 0.0  # the higher modes start at the prior mean (as the batch)
+        return x, std
+
+    def _params(self, x: np.ndarray) -> tuple[float, float, float, np.ndarray]:
+        """``ex, ey, damping`` of the state and their seeds ``(3, npar)`` (d physical / d scaled)."""
+        vals = {"prestrain_x": self.bm.prestrain, "prestrain_y": self.bm.prestrain, "damping": 1.0}
+        seeds = np.zeros((3, len(self.prior.free)))
+        for i, name in enumerate(self.prior.free):
+            mean, std = self._par_ms[i]
+            v = mean + std * x[self.ps.start + i]
+            vals[name] = math.exp(v) if name == "damping" else v
+            seeds[PARAMETERS.index(name), i] = std * (vals[name] if name == "damping" else 1.0)
+        return vals["prestrain_x"], vals["prestrain_y"], vals["damping"], seeds
+
+    # -- public ----------------------------------------------------------------------------------
+    def push(self, t: float, y) -> Estimate:
+        """Add one sample (time ``t`` in s, one value per sensor, NaN = missing); return the estimate."""
+        t = float(t)
+        y = np.asarray(y, dtype=float).reshape(-1)
+        if y.size != self.p:
+            raise InputError(f"push: {y.size} values for {self.p} sensors ({', '.join(self.names)})")
+        if not np.isfinite(t):
+            raise InputError(f"push: t = {t!r}: expected a finite time (s)")
+        if self._t_prev is not None:
+            step = t - self._t_prev
+            if self.dt is None:
+                if not step > 0:
+                    raise InputError(f"push: t = {t!r} after {self._t_prev!r}: expected increasing times")
+                self.dt = step
+            elif abs(step / self.dt - 1.0) > _JITTER:
+                raise InputError(
+                    f"push: t = {t!r} after {self._t_prev!r}: expected the sample period {self.dt:.6g} s "
+                    "(fill gaps with missing samples)"
+                )
+        self._t_prev = t
+        k = self.count
+        self.count += 1
+        phase = self.phase
+        if phase in ("waiting", "provisional"):
+            self._buf.append(y)
+        if phase == "waiting":
+            if self.count < self.settings.min_samples:
+                self.last = Estimate(k, t, np.nan, np.inf, None, np.nan, True, "waiting")
+                return self.last
+            self._start()
+            phase = self.phase
+        elif phase == "provisional" and self.count >= self._startup_at:
+            self._startup()
+            phase = "startup"
+        else:
+            self._predict()
+            self._update(y)
+        return self._estimate(k, t, phase)
+
+    @property
+    def lift(self) -> float:
+        return np.nan if self.last is None else self.last.lift
+
+    def parameters(self) -> dict:
+        """Current prestrains and damping factor with their 1-sigma (physical units)."""
+        ex, ey, d, _ = self._params(self.x)
+        out = {"prestrain_x": ex, "prestrain_y": ey, "damping": d}
+        std = dict.fromkeys(PARAMETERS, 0.0)
+        for i, name in enumerate(self.prior.free):
+            j = self.ps.start + i
+            sd = self._par_ms[i, 1] * math.sqrt(max(self.P[j, j], 0.0))
+            std[name] = sd * d if name == "damping" else sd
+        return {"parameters": out, "parameters_std": std}
+
+    def info(self) -> dict:
+        out = {"phase": self.phase, "samples": self.count, "dt_s": self.dt, "model": "nonlinear (Berger), EKF"}
+        out.update(modes=self.m, load_shapes=self.shapes.count, substeps=self.bm.substeps, **self.startup)
+        if self.phase not in ("waiting",):
+            out.update(self.parameters(), noise_std=self.sigma.tolist(), noise_source=self.noise_source)
+        return out
+
+    # -- start-up ----------------------------------------------------------------------------------
+    def _check_sigma(self, sigma) -> np.ndarray:
+        sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (self.p,)).copy()
+        if not np.all(np.isfinite(sigma) & (sigma > 0)):
+            raise InputError(f"noise_std = {sigma.tolist()}: expected positive values")
+        return sigma
+
+    def _noise(self, Y: np.ndarray) -> np.ndarray:
+        self.noise_source = "estimated from the data"
+        sigma = estimate_noise_std(Y, MHE_NOISE, self.names)
+        scale = np.nanmax(np.abs(Y), axis=0)
+        return np.maximum(sigma, 1e-6 * np.where(np.isfinite(scale) & (scale > 0), scale, 1.0))
+
+    def _start(self) -> None:
+        """The provisional filter: from the prior over the buffered samples."""
+        s = self.settings
+        if self.dt is not None and abs(self.dt - self.bm.dt) > 1e-9 * self.bm.dt:
+            self._build(self.dt)
+        Y = np.array(self._buf)
+        self.sigma = self._noise(Y) if self._sigma_given is None else self._sigma_given
+        self.x, std = self._prior_state(Y)
+        self.P = np.diag(std**2)
+        dt = self.dt or self.bm.dt
+        self._walk = (s.load_walk**2) * dt
+        W = max(int(round(s.window_s / dt)), 1)
+        self._nis = np.zeros(W)
+        self._nd = np.zeros(W, dtype=np.int64)
+        self._ring = 0
+        self._update(Y[0])
+        for k in range(1, Y.shape[0]):
+            self._predict()
+            self._update(Y[k])
+        self.phase = "provisional"
+        self._startup_at = max(int(round(s.startup_s / dt)), s.min_samples + 1)
+
+    def _startup(self) -> None:
+        """Noise level from the buffer (unless given), the batch fit of the buffer, then tracking."""
+        c0, w0 = time.process_time(), time.perf_counter()
+        Y = np.array(self._buf)
+        if self._sigma_given is None:
+            self.sigma = self._noise(Y)
+        out = batch_start(self, Y, self.sigma)
+        self._buf = []
+        self.phase = "tracking"
+        self.startup = {
+            "startup_sample": self.count - 1,
+            "startup_cpu_s": time.process_time() - c0,
+            "startup_wall_s": time.perf_counter() - w0,
+            **out,
+        }
+
+    # -- the filter ---------------------------------------------------------------------------------
+    def _predict(self) -> None:
+        m, x, D = self.m, self.x, self._D
+        ex, ey, d, seeds = self._params(x)
+        q, v = D[:m] * x[:m], D[m:] * x[m : 2 * m]
+        u = x[self.ls] @ self._forces
+        n = self.n
+        dQ = np.zeros((n, m))
+        dV = np.zeros((n, m))
+        idx = np.arange(m)
+        dQ[idx, idx] = D[:m]
+        dV[m + idx, idx] = D[m:]
+        q1, v1, dQ1, dV1 = self.sampler.step_tangent(q, v, u, ex, ey, d, dQ, dV, seeds)
+        x[:m], x[m : 2 * m] = q1 / D[:m], v1 / D[m:]
+        Fx = np.vstack([dQ1.T / D[:m, None], dV1.T / D[m:, None]])  # (2m, n): d scaled state / d scaled x
+        P = self.P
+        T = Fx @ P
+        P[: 2 * m, : 2 * m] = T @ Fx.T
+        P[: 2 * m, 2 * m :] = T[:, 2 * m :]
+        P[2 * m :, : 2 * m] = T[:, 2 * m :].T
+        P[: 2 * m, : 2 * m] += P[: 2 * m, : 2 * m].T  # symmetric to rounding: the update keeps it so
+        P[: 2 * m, : 2 * m] *= 0.5
+        ls = self.ls
+        P[ls, ls] += self._walk * np.eye(ls.stop - ls.start)
+
+    def _update(self, y: np.ndarray) -> None:
+        m, x, D = self.m, self.x, self._D
+        ok = np.isfinite(y)
+        i = self._ring = (self._ring + 1) % self._nis.size
+        self._nis[i], self._nd[i] = 0.0, 0
+        if not ok.any():
+            return
+        q = D[:m] * x[:m]
+        C = self.bm.sensor_matrices[ok]
+        Cq = C @ q  # (p, m)
+        nu = y[ok] - Cq @ q
+        H = 2.0 * Cq * D[:m]  # (p, m): only the displacement columns are non-zero
+        P = self.P
+        PH = P[:, :m] @ H.T  # (n, p)
+        S = H @ PH[:m] + np.diag(self.sigma[ok] ** 2)
+        L = np.linalg.cholesky(S)
+        Z = np.linalg.solve(L, PH.T)  # (p, n)
+        w = np.linalg.solve(L, nu)
+        x += Z.T @ w
+        P -= Z.T @ Z
+        self._nis[i], self._nd[i] = float(w @ w), int(ok.sum())
+
+    # -- output -----------------------------------------------------------------------------------
+    def _threshold(self, n: int) -> float:
+        if n not in self._isf:
+            if len(self._isf) > 64:
+                self._isf.clear()
+            self._isf[n] = float(chi2_dist.isf(SIGNIFICANCE, max(n, 1)))
+        return self._isf[n]
+
+    def _estimate(self, k: int, t: float, phase: str) -> Estimate:
+        ls = self.ls
+        n = int(self._nd.sum())
+        chi = float(self._nis.sum())
+        adequate = bool(n == 0 or chi <= self._threshold(n))
+        per = chi / max(n, 1)
+        lift = float(self._lift @ self.x[ls])
+        var = float(self._lift @ self.P[ls, ls] @ self._lift)
+        std = math.sqrt(max(var, 0.0)) * (1.0 if adequate else math.sqrt(max(per, 1.0)))
+        load = self.shapes.coefficients(self.shapes.prior_std * self.x[ls])
+        self.last = Estimate(k, t, lift, std, load, per, adequate, phase)
+        return self.last
