@@ -166,7 +166,14 @@ def run_stream(args, mhe_settings) -> int:
     if args.mesh:
         problem = problem.with_mesh(parse_mesh(args.mesh))
     model = MembraneModel.from_problem(problem)
-    est = StreamingEstimator(model, StreamSettings(mhe=mhe_settings), args.noise_std, args.initial_load)
+    if getattr(args, "model", "auto") == "nonlinear":  # auto streams the linear MHE (as the batch on measured data)
+        from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator
+
+        est = NonlinearStreamingEstimator(model, noise_std=args.noise_std, initial_load=args.initial_load)
+        method = "nonlinear-stream"
+    else:
+        est = StreamingEstimator(model, StreamSettings(mhe=mhe_settings), args.noise_std, args.initial_load)
+        method = "mhe-stream"
     source = args.follow or "<stdin>"
     parser = CsvRowParser(problem.sensor_names, source)
     stop: dict = {}
@@ -212,6 +219,7 @@ def run_stream(args, mhe_settings) -> int:
                 failure = exc
                 lines.reason = f"bad input: {exc}"
             summary = _summary(est, parser, lines.reason, cpu, wall, bad, first_bad, source, problem, live.rows)
+            summary["method"] = method
             summary["wall_s"] = time.perf_counter() - t_start
             write_json(tmp / "summary.json", to_jsonable(summary))
     finally:
@@ -219,7 +227,7 @@ def run_stream(args, mhe_settings) -> int:
             signal.signal(sig, h)
     if failure is not None:
         raise failure
-    line = f"mhe-stream: {summary['samples']} samples, lift {summary['lift_N']:.5g} N"
+    line = f"{method}: {summary['samples']} samples, lift {summary['lift_N']:.5g} N"
     if summary["lift_std_N"] is not None:
         line += f" ± {summary['lift_std_N']:.2g}"
     line += f", stopped: {summary['stopped']} -> {args.out}"

@@ -27,28 +27,33 @@ from wingopt.estimation.realistic.berger_modal import BergerModal, oscillator_st
 __all__ = ["BergerSample"]
 
 
-def _gains(k, a, e, h):
-    """Per-mode coefficients of one exact oscillator step and the partials of ``(q1, v1)`` w.r.t. ``k, a``
-    (written for ``x = q - u/k``, ``v`` given later)."""
+def _gains(k, a, e, h, velocity=True):
+    """Per-mode coefficients of one exact oscillator step and their partials w.r.t. ``k`` and ``a``
+    (``velocity=False``: the displacement's only, for the predictor)."""
     zz = (k - a * a) * (h * h)
-    pos = zz > 0
-    r = np.sqrt(np.abs(zz))
-    CZ = np.where(pos, np.cos(r), np.cosh(r))
-    SZ = np.where(pos, np.sin(r), np.sinh(r)) / r
-    es = e * SZ * h
-    A = e * CZ + a * es
-    Cq = e * CZ - a * es
-    Dk = k * es
-    dSZ = (CZ - SZ) / (2 * zz)
-    CZk = -0.5 * SZ * h * h  # zz_k = h^2
-    esk = e * h * dSZ * h * h
-    Ak, Cqk, Dkk = e * CZk + a * esk, e * CZk - a * esk, es + k * esk
-    za, ea = -2 * a * h * h, -h * e  # zz_a, e_a
-    CZa = -0.5 * SZ * za
-    esa = ea * SZ * h + e * h * dSZ * za
-    Aa = ea * CZ + e * CZa + es + a * esa
-    Cqa = ea * CZ + e * CZa - es - a * esa
-    return A, es, Cq, Dk, Ak, esk, Cqk, Dkk, Aa, esa, Cqa, k * esa
+    if zz.min() > 0:  # all modes under-damped (the usual case): no branch to select
+        r = np.sqrt(zz)
+        CZ, SZ = np.cos(r), np.sin(r) / r
+    else:
+        pos = zz > 0
+        r = np.sqrt(np.abs(zz))
+        CZ = np.where(pos, np.cos(r), np.cosh(r))
+        SZ = np.where(pos, np.sin(r), np.sinh(r)) / r
+    eh = e * h
+    es = eh * SZ
+    eCZ = e * CZ
+    A = eCZ + a * es
+    esk = eh * h * h * (CZ - SZ) / (2 * zz)  # d(e s)/dk, zz_k = h^2
+    eCZk = -0.5 * eh * h * SZ
+    Ak = eCZk + a * esk
+    za = -2 * a * h * h  # zz_a; e_a = -h e
+    esa = -h * es + esk * za / (h * h)
+    eCZa = -h * eCZ - 0.5 * e * SZ * za
+    Aa = eCZa + es + a * esa
+    if not velocity:
+        return A, es, Ak, esk, Aa, esa
+    Cq = eCZ - a * es
+    return A, es, Ak, esk, Aa, esa, Cq, k * es, eCZk - a * esk, es + k * esk, eCZa - es - a * esa, k * esa
 
 
 class BergerSample:
@@ -74,6 +79,7 @@ class BergerSample:
         self.substeps = bm.substeps
         self.nu, self.C = mat.poisson_ratio, bm.stiffness_c
         self.kx, self.ky = bm.kx, bm.ky
+        self._K2 = np.column_stack([bm.kx, bm.ky])
         self.k0x = self.C * (bm.kx + self.nu * bm.ky)
         self.k0y = self.C * (bm.ky + self.nu * bm.kx)
         ia = 1.0 / (2.0 * bm.area)
@@ -91,7 +97,7 @@ class BergerSample:
 
     def _stiff(self, q, k0):
         on = 1.0 if self.nonlinear else 0.0
-        return k0 + on * ((q * q) @ np.column_stack([self.kx, self.ky])) @ self.ks
+        return k0 + on * ((q * q) @ self._K2) @ self.ks
 
     def step(self, q, v, u, ex, ey, damping):
         """The state one sample later (no tangent; the reference for the tangent's tests)."""
@@ -125,7 +131,7 @@ class BergerSample:
         da = 0.5 * (np.outer(dpar[2], visc) + damping * self.kv * dk0)
         dU = self.load_forces
         on = 1.0 if self.nonlinear else 0.0
-        K2 = np.column_stack([self.kx, self.ky])
+        K2 = self._K2
         h = self.h
 
         def stiff(q, dQ):
@@ -135,19 +141,25 @@ class BergerSample:
             return k, dK
 
         def stage(q, v, k, dQ, dV, dK, velocity):
-            A, B, Cq, Dk, Ak, Bk, Cqk, Dkk, Aa, Ba, Cqa, Dka = _gains(k, a, e, h)
+            g = _gains(k, a, e, h, velocity)
+            A, B, Ak, Bk, Aa, Ba = g[:6]
             qe = u / k
             x = q - qe
             q1 = qe + A * x + B * v
             gu = (1.0 - A) / k
-            dQ1 = A * dQ + B * dV + (Ak * x + Bk * v - gu * qe) * dK
+            dQ1 = A * dQ
+            dQ1 += B * dV
+            dQ1 += (Ak * x + Bk * v - gu * qe) * dK
             dQ1[ls] += gu * dU
             dQ1[ps] += (Aa * x + Ba * v) * da
             if not velocity:
                 return q1, None, dQ1, None
+            Cq, Dk, Cqk, Dkk, Cqa, Dka = g[6:]
             v1 = Cq * v - Dk * x
             hu = Dk / k
-            dV1 = Cq * dV - Dk * dQ + (Cqk * v - Dkk * x - hu * qe) * dK
+            dV1 = Cq * dV
+            dV1 -= Dk * dQ
+            dV1 += (Cqk * v - Dkk * x - hu * qe) * dK
             dV1[ls] += hu * dU
             dV1[ps] += (Cqa * v - Dka * x) * da
             return q1, v1, dQ1, dV1

@@ -17,7 +17,6 @@ import numpy as np
 
 from wingopt.estimation.realistic.record_problem import RecordProblem
 from wingopt.estimation.realistic.solver import levenberg_marquardt
-from wingopt.estimation.streaming.berger_step import BergerSample
 
 __all__ = ["batch_start"]
 
@@ -29,7 +28,6 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
     with its prior set (``_D``, ``_prior_state``) and a provisional estimate in ``est.x``.
     """
     bm, m, ms = est.bm, est.m, min(est.settings.state_modes, est.m)
-    ns, npar = est.shapes.count, len(est.prior.free)
     x_prior, _ = est._prior_state(Y)
     D = est._D
     x_mean = np.concatenate([D[:m] * x_prior[:m], np.zeros(m)])
@@ -48,8 +46,6 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
     x[m : m + ms] = fit.theta[ms : 2 * ms]
     x[est.ls] = fit.theta[sl["c"]]
     x[est.ps] = fit.theta[sl["par"]]
-    load_rows, par_rows = slice(2 * ms, 2 * ms + ns), slice(2 * ms + ns, d)
-    sampler = BergerSample(bm, est._forces, load_rows, par_rows)
     idx = np.arange(ms)
     dQ, dV = np.zeros((d, m)), np.zeros((d, m))
     dQ[idx, idx] = D[idx]
@@ -58,16 +54,11 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
     ex, ey, damping, seeds = est._params(x)
     u = x[est.ls] @ est._forces
     for _ in range(Y.shape[0] - 1):
-        q, v, dQ, dV = sampler.step_tangent(q, v, u, ex, ey, damping, dQ, dV, seeds)
+        q, v, dQ, dV = est.sampler.step_tangent(q, v, u, ex, ey, damping, dQ, dV, seeds)
     x[:m], x[m : 2 * m] = q / D[:m], v / D[m:]
-    G = np.zeros((est.n, d))
-    G[:m] = dQ.T / D[:m, None]
-    G[m : 2 * m] = dV.T / D[m:, None]
-    G[est.ls, sl["c"]] = np.eye(ns)
-    G[est.ps, sl["par"]] = np.eye(npar)
     est.x = x
-    P = G @ Sigma @ G.T
-    est.P = 0.5 * (P + P.T)
+    est.G = np.vstack([dQ.T / D[:m, None], dV.T / D[m:, None]])
+    est.Sigma = Sigma
     # the window's misfit: the fit's residuals of the last samples
     R = np.zeros(Y.shape)
     R[rp.valid] = fit.residuals
