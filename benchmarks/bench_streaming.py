@@ -44,7 +44,7 @@ import numpy as np  # noqa: E402
 from wingopt.estimation.mhe import mhe_identify  # noqa: E402
 from wingopt.estimation.realistic import realistic_identify  # noqa: E402
 from wingopt.estimation.streaming import StreamingEstimator, StreamSettings  # noqa: E402
-from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator  # noqa: E402
+from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator, NonlinearStreamSettings  # noqa: E402
 from wingopt.membrane import MembraneModel  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
 from wingopt.workflows.protocols import simulate_case  # noqa: E402
@@ -70,6 +70,7 @@ def stats(x: np.ndarray, period: float) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--model", choices=("linear", "nonlinear"), default="linear", help="estimator and truth")
+    ap.add_argument("--tracking-substeps", type=int, default=1, help="nonlinear: sub-steps per sample after start-up")
     ap.add_argument("--seconds", type=float, default=60.0, help="steady data streamed after the 1 s record")
     ap.add_argument("--load", default="L1")
     ap.add_argument("--seed", type=int, default=0)
@@ -92,7 +93,7 @@ def main() -> None:
     batch_cpu = time.process_time() - t0
 
     if nonlinear:
-        est = NonlinearStreamingEstimator(model)
+        est = NonlinearStreamingEstimator(model, NonlinearStreamSettings(tracking_substeps=args.tracking_substeps))
     else:
         est = StreamingEstimator(model, StreamSettings(relinearize=args.relinearize))
     K0 = meas.count
@@ -137,6 +138,7 @@ def main() -> None:
     trk = phase[:K0] == 3
     out = {
         "model": args.model,
+        "tracking_substeps": args.tracking_substeps if nonlinear else None,
         "load_average": os.getloadavg(),
         "streamed_s": (K0 + K1) * dt,
         "samples": K0 + K1,

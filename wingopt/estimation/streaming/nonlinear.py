@@ -51,9 +51,9 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import lapack
 from scipy.stats import chi2 as chi2_dist
 
 from wingopt.errors import InputError
@@ -65,7 +65,7 @@ from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPri
 from wingopt.estimation.streaming.berger_step import BergerSample
 from wingopt.estimation.streaming.nonlinear_start import batch_start
 from wingopt.estimation.streaming.running_noise import RunningNoise
-from wingopt.estimation.streaming.types import Estimate
+from wingopt.estimation.streaming.types import Estimate, NonlinearStreamSettings
 from wingopt.membrane import MembraneModel, bubble
 
 __all__ = ["NonlinearStreamSettings", "NonlinearStreamingEstimator"]
@@ -73,52 +73,6 @@ __all__ = ["NonlinearStreamSettings", "NonlinearStreamingEstimator"]
 log = logging.getLogger(__name__)
 
 _JITTER = 0.01
-
-
-@dataclass(frozen=True)
-class NonlinearStreamSettings:
-    """Settings of :class:`NonlinearStreamingEstimator` (model defaults: the batch realistic estimator's).
-
-    Attributes
-    ----------
-    modes, shapes, state_modes, substeps, substep_s, kappa, prior_power :
-        As :class:`~wingopt.estimation.realistic.RealisticSettings` (all modes dynamic).
-    free : tuple of str or None
-        Free parameters (some of ``prestrain_x, prestrain_y, damping``); ``None``: the problem file's.
-    load_walk : float
-        Random walk of the load coefficients, in prior stds per sqrt(s).
-    min_samples : int
-        Samples before the first estimate (>= 20: the first noise estimate).
-    startup_s : float
-        When the noise level is re-estimated and the filter re-run over the buffered samples (s).
-    window_s : float
-        Window of the innovation chi-square (s).
-    """
-
-    modes: int = 48
-    shapes: int = 15
-    state_modes: int = 12
-    substeps: int = 2
-    substep_s: float = 0.5e-3
-    kappa: float = 1.0
-    prior_power: float = 1.0
-    free: tuple[str, ...] | None = None
-    load_walk: float = 0.002
-    min_samples: int = 20
-    startup_s: float = 0.3
-    window_s: float = 0.1
-
-    def __post_init__(self) -> None:
-        for name, low in (("modes", 1), ("shapes", 1), ("state_modes", 1), ("substeps", 1), ("min_samples", 20)):
-            val = getattr(self, name)
-            if int(val) != val or val < low:
-                raise InputError(f"nonlinear streaming {name} = {val!r}: expected an integer >= {low}")
-        for name in ("substep_s", "startup_s", "window_s", "kappa"):
-            val = getattr(self, name)
-            if not (np.isfinite(val) and val > 0):
-                raise InputError(f"nonlinear streaming {name} = {val!r}: expected a positive number")
-        if not (np.isfinite(self.load_walk) and self.load_walk >= 0):
-            raise InputError(f"nonlinear streaming load_walk = {self.load_walk!r}: expected a number >= 0")
 
 
 class NonlinearStreamingEstimator:
@@ -182,6 +136,9 @@ class NonlinearStreamingEstimator:
         self.lc, self.pc = slice(2 * ms, 2 * ms + ns), slice(2 * ms + ns, self.d)  # in the unknowns theta
         self._forces = (bm.input_matrix @ self.shapes.shapes).T * self.shapes.prior_std[:, None]  # per unknown
         self.sampler = BergerSample(bm, self._forces, self.lc, self.pc)
+        ts = max(s.tracking_substeps, int(math.ceil(dt / (2.0 * s.substep_s) - 1e-9)))
+        bt = bm if ts == substeps else BergerModal.build(model, bm.m, dt=dt, substeps=ts)
+        self._tracker = BergerSample(bt, self._forces, self.lc, self.pc)
         self._par_ms = np.array([self.prior.mean_std(name) for name in self.prior.free]).reshape(-1, 2)
         self._lift = self.shapes.lift_row * self.shapes.prior_std  # lift per scaled load unknown
 
@@ -306,6 +263,7 @@ class NonlinearStreamingEstimator:
         self.sigma = self._noise(Y) if self._sigma_given is None else self._sigma_given
         self.x, self.G = self._prior_state(Y)
         self.Sigma = np.eye(self.d)
+        self._lc_diag = (np.arange(self.lc.start, self.lc.stop),) * 2
         dt = self.dt or self.bm.dt
         self._walk = (s.load_walk**2) * dt
         W = max(int(round(s.window_s / dt)), 1)
@@ -327,6 +285,7 @@ class NonlinearStreamingEstimator:
             tail = Y[int(Y.shape[0] * (1 - MHE_NOISE.tail)) :]
             self._running = RunningNoise(self.sigma, np.isfinite(np.diff(tail, 2, axis=0)).sum(axis=0), Y[-2:])
         out = batch_start(self, Y, self.sigma)
+        self.sampler = self._tracker  # the start-up transient has decayed: tracking_substeps (see the settings)
         self._level = max(1.0, out["startup_chi2_per_datum"])  # the misfit level the model reaches (as the linear)
         self._buf = []
         self.phase = "tracking"
@@ -349,8 +308,7 @@ class NonlinearStreamingEstimator:
         x[:m], x[m : 2 * m] = q1 / D[:m], v1 / D[m:]
         np.divide(dQ1.T, D[:m, None], out=G[:m])
         np.divide(dV1.T, D[m:, None], out=G[m:])
-        lc = self.lc
-        self.Sigma[lc, lc] += self._walk * np.eye(lc.stop - lc.start)
+        self.Sigma[self._lc_diag] += self._walk
 
     def _update(self, y: np.ndarray) -> None:
         m, x, D = self.m, self.x, self._D
@@ -360,16 +318,19 @@ class NonlinearStreamingEstimator:
         if not ok.any():
             return
         q = D[:m] * x[:m]
-        C = self.bm.sensor_matrices[ok]
-        Cq = C @ q  # (p, m)
-        nu = y[ok] - Cq @ q
+        full = ok.all()  # the usual case: no copies
+        Cq = (self.bm.sensor_matrices if full else self.bm.sensor_matrices[ok]) @ q  # (p, m)
+        nu = (y if full else y[ok]) - Cq @ q
         Hg = (2.0 * Cq * D[:m]) @ self.G[:m]  # (p, d): d outputs / d unknowns
         Sigma = self.Sigma
         SH = Sigma @ Hg.T  # (d, p)
-        S = Hg @ SH + np.diag(self.sigma[ok] ** 2)
-        L = np.linalg.cholesky(S)
-        Z = np.linalg.solve(L, SH.T)  # (p, d)
-        w = np.linalg.solve(L, nu)
+        S = Hg @ SH
+        S[np.diag_indices_from(S)] += (self.sigma if full else self.sigma[ok]) ** 2
+        L, info = lapack.dpotrf(S, lower=1, clean=1)
+        if info != 0:  # S = H P H^T + R with R > 0: only a covariance broken by rounding gets here
+            raise np.linalg.LinAlgError("nonlinear streaming: innovation covariance not positive definite")
+        Zw, _ = lapack.dtrtrs(L, np.hstack([SH.T, nu[:, None]]), lower=1)
+        Z, w = Zw[:, :-1], Zw[:, -1]  # L^-1 (H Sigma), L^-1 nu
         dth = Z.T @ w
         x[: 2 * m] += self.G @ dth
         x[self.ls] += dth[self.lc]
