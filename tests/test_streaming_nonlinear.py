@@ -11,6 +11,7 @@ import json
 import os
 import subprocess
 import sys
+import tracemalloc
 
 import numpy as np
 import pytest
@@ -162,8 +163,29 @@ def test_stream_phases_and_bounded_state(record, streamed):
     # the band narrows from the prior to the tracking phase
     assert out[19].lift_std > out[-1].lift_std
     # a missing sample: no update, the estimate goes on
-    e = est.push(meas.t[-1] + est.dt, np.full(est.p, np.nan))
+    t = meas.t[-1] + est.dt
+    e = est.push(t, np.full(est.p, np.nan))
     assert np.isfinite(e.lift) and e.phase == "tracking"
+    # memory: nothing grows over further samples (traced Python allocations, not RSS)
+    rng = np.random.default_rng(0)
+    y = meas.values[-1]
+    sigma = np.array(est.sigma)
+
+    def more(n, t):
+        for _ in range(n):
+            t += est.dt
+            est.push(t, y + sigma * rng.standard_normal(est.p))
+        return t
+
+    tracemalloc.start()
+    try:
+        t = more(50, t)
+        before = tracemalloc.get_traced_memory()[0]
+        t = more(300, t)
+        grown = tracemalloc.get_traced_memory()[0] - before
+    finally:
+        tracemalloc.stop()
+    assert grown < 20_000, grown  # bytes (measured 32 bytes over 300 samples on the L1 protocol record)
 
 
 def test_bad_input_is_a_one_line_error(record):

@@ -111,7 +111,7 @@ class NonlinearStreamingEstimator:
         rel = getattr(ident, "prestrain_prior_rel", 0.2)
         self.prior = ParameterPrior((e0, e0), tuple(free), rel, 1.0, getattr(ident, "damping_prior_rel", 1.0))
         self.shapes = LoadShapes.build(model, min(s.shapes, model.n), self.initial_load, s.kappa, s.prior_power)
-        self._build(ident.dt)
+        self._build(ident.dt or 1e-3)  # rebuilt at the first estimate if the stream's period differs
         self.count = 0
         self.phase = "waiting"
         self.dt: float | None = None
@@ -185,7 +185,7 @@ class NonlinearStreamingEstimator:
     def push(self, t: float, y) -> Estimate:
         """Add one sample (time ``t`` in s, one value per sensor, NaN = missing); return the estimate."""
         t = float(t)
-        y = np.asarray(y, dtype=float).reshape(-1)
+        y = np.array(y, dtype=float).reshape(-1)  # a copy: the buffer and the noise level keep it
         if y.size != self.p:
             raise InputError(f"push: {y.size} values for {self.p} sensors ({', '.join(self.names)})")
         if not np.isfinite(t):
