@@ -140,13 +140,13 @@ def test_stream_matches_batch_realistic_on_berger_truth(record, streamed):
     est, out = streamed
     batch = realistic_identify(model, meas, RealisticSettings(membrane="nonlinear", load_model="constant"))
     final = out[-1]
-    # measured: +0.15 % from the batch; -0.36 % (stream) and -0.51 % (batch) from the truth
+    # measured: -1e-6 from the batch; both -0.51 % from the truth
     assert abs(final.lift / batch.lift[-1] - 1) < 0.005
     assert final.lift_std == pytest.approx(batch.lift_std[-1], rel=0.25)
     assert abs(final.lift - case.lift_history[-1]) < 3 * final.lift_std
     assert final.adequate and 0.7 < final.chi2_per_datum < 1.4
     par = est.parameters()["parameters"]
-    for name in ("prestrain_x", "prestrain_y", "damping"):  # measured within 2.2 %, 1.1 %, 0.1 %
+    for name in ("prestrain_x", "prestrain_y", "damping"):  # measured within 2.4 %, 1.3 %, 0.1 %
         assert par[name] == pytest.approx(batch.info["parameters"][name], rel=0.05)
 
 

@@ -135,10 +135,10 @@ class NonlinearStreamingEstimator:
         self.ls, self.ps = slice(2 * m, 2 * m + ns), slice(2 * m + ns, self.n)  # in the state x
         self.lc, self.pc = slice(2 * ms, 2 * ms + ns), slice(2 * ms + ns, self.d)  # in the unknowns theta
         self._forces = (bm.input_matrix @ self.shapes.shapes).T * self.shapes.prior_std[:, None]  # per unknown
-        self.sampler = BergerSample(bm, self._forces, self.lc, self.pc)
+        self.fit_sampler = BergerSample(bm, self._forces, self.lc, self.pc)  # the batch's integrator (start-up)
         ts = max(s.tracking_substeps, int(math.ceil(dt / (2.0 * s.substep_s) - 1e-9)))
         bt = bm if ts == substeps else BergerModal.build(model, bm.m, dt=dt, substeps=ts)
-        self._tracker = BergerSample(bt, self._forces, self.lc, self.pc)
+        self.sampler = BergerSample(bt, self._forces, self.lc, self.pc)  # the filter's (provisional, tracking)
         self._par_ms = np.array([self.prior.mean_std(name) for name in self.prior.free]).reshape(-1, 2)
         self._lift = self.shapes.lift_row * self.shapes.prior_std  # lift per scaled load unknown
 
@@ -285,7 +285,6 @@ class NonlinearStreamingEstimator:
             tail = Y[int(Y.shape[0] * (1 - MHE_NOISE.tail)) :]
             self._running = RunningNoise(self.sigma, np.isfinite(np.diff(tail, 2, axis=0)).sum(axis=0), Y[-2:])
         out = batch_start(self, Y, self.sigma)
-        self.sampler = self._tracker  # the start-up transient has decayed: tracking_substeps (see the settings)
         self._level = max(1.0, out["startup_chi2_per_datum"])  # the misfit level the model reaches (as the linear)
         self._buf = []
         self.phase = "tracking"

@@ -54,7 +54,7 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
     ex, ey, damping, seeds = est._params(x)
     u = x[est.ls] @ est._forces
     for _ in range(Y.shape[0] - 1):
-        q, v, dQ, dV = est.sampler.step_tangent(q, v, u, ex, ey, damping, dQ, dV, seeds)
+        q, v, dQ, dV = est.fit_sampler.step_tangent(q, v, u, ex, ey, damping, dQ, dV, seeds)
     x[:m], x[m : 2 * m] = q / D[:m], v / D[m:]
     est.x = x
     est.G = np.vstack([dQ.T / D[:m, None], dV.T / D[m:, None]])

@@ -102,15 +102,17 @@ class NonlinearStreamSettings:
     free : tuple of str or None
         Free parameters (some of ``prestrain_x, prestrain_y, damping``); ``None``: the problem file's.
     tracking_substeps : int
-        Integration sub-steps per sample after the start-up, at least one per 1 ms (default 1:
-        one at 1 kHz, four at 300 Hz; the start-up fit uses the batch's ``substeps``). The
-        oscillator step is exact for a constant tension, so once the start-up transient has
-        decayed one predictor-corrector step per sample loses nothing measurable (L1 protocol:
-        final lift within 2e-6 of the 2-sub-step filter) at about half the work; in a fast
-        transient (a gust) its error is 2.3e-2 of the peak output instead of 6.1e-3
+        Integration sub-steps per sample of the filter, at least one per 1 ms (default 1: one at
+        1 kHz, four at 300 Hz); the start-up fit uses the batch's ``substeps``. The oscillator
+        step is exact for a constant tension, so after the start-up transient one
+        predictor-corrector step per sample loses nothing measurable (L1 protocol: final lift
+        within 2e-6 of the 2-sub-step filter) at about half the work; in a fast transient (a
+        gust, the provisional phase) its error is 2.3e-2 of the peak output instead of 6.1e-3
         (docs/estimation_realistic.md).
     load_walk : float
-        Random walk of the load coefficients, in prior stds per sqrt(s).
+        Random walk of the load coefficients, in prior stds per sqrt(s) (default 0: a constant
+        load, as the batch; measured: 0.002 makes the lift drift -1.2 % per minute of steady
+        data on the L1 protocol, outside its band).
     min_samples : int
         Samples before the first estimate (>= 20: the first noise estimate).
     startup_s : float
@@ -128,7 +130,7 @@ class NonlinearStreamSettings:
     kappa: float = 1.0
     prior_power: float = 1.0
     free: tuple[str, ...] | None = None
-    load_walk: float = 0.002
+    load_walk: float = 0.0
     min_samples: int = 20
     startup_s: float = 0.3
     window_s: float = 0.1
