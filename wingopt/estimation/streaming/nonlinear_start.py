@@ -8,7 +8,10 @@ there biases everything after. The start-up therefore solves the realistic estim
 provisional filter's load and parameters, and converts its answer into the filter's mean and
 covariance at the last buffered sample: the state is propagated from the fitted initial state
 with the exact tangent of the unknowns (``G``, ``P = G Sigma G^T``, ``Sigma`` the fit's posterior
-covariance). From then on the filter continues as the batch would with an arrival cost.
+covariance). From then on the filter continues as the batch would with an arrival cost. When the
+fit from the provisional estimate does not fit the data (chi-square per datum above 1.15, the
+batch's tolerance) it is also started from the batch's amplitude scan and the better fit is kept;
+without a bubble prior the sign is the prior load's (the batch's rule).
 """
 
 from __future__ import annotations
@@ -18,7 +21,24 @@ import numpy as np
 from wingopt.estimation.realistic.record_problem import RecordProblem
 from wingopt.estimation.realistic.solver import levenberg_marquardt
 
-__all__ = ["batch_start"]
+__all__ = ["batch_start", "TOLERANCE"]
+
+TOLERANCE = 0.15
+"""The batch's adequacy tolerance on the chi-square per datum (:mod:`wingopt.estimation.realistic.adequacy`)."""
+
+
+def _scan(rp: RecordProblem) -> np.ndarray:
+    """The batch's start: the best amplitude along the smoothest shape, both signs (one batched run).
+
+    The same grid and cost as the realistic estimator's start-up scan (a private function there).
+    """
+    amps = np.array([0.1, 0.2, 0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 3.0])
+    amps = np.concatenate([amps, -amps])
+    th = np.zeros((amps.size, rp.dim))
+    th[:, rp.slices["c"].start] = amps
+    Q = rp.trajectory(th).real
+    cost = [float(np.sum(((rp.y - rp.model.outputs(Q[:, b])) / rp.sigma)[rp.valid] ** 2)) for b in range(amps.size)]
+    return th[int(np.argmin(np.array(cost) + amps**2))]
 
 
 def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> dict:
@@ -38,14 +58,25 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
     theta0[sl["c"]] = est.x[est.ls]  # the provisional filter's load and parameters: a start near the optimum
     theta0[sl["par"]] = est.x[est.ps]
     fit = levenberg_marquardt(rp, theta0, max_iter)
-    Sigma = fit.covariance
+    starts = 1
+    if fit.data_cost > (1 + TOLERANCE) * rp.n_data:  # not a fit: the batch's start (amplitude scan) too
+        other = levenberg_marquardt(rp, _scan(rp), max_iter)
+        starts = 2
+        fit = other if other.cost < fit.cost else fit
+    theta, Sigma = fit.theta, fit.covariance
+    peak = est.model.problem.identification.initial_deflection
+    if peak == 0 and est._lift @ theta[sl["c"]] * np.sign(est.initial_load) < 0:
+        # sign-blind sensors and no bubble: state and load flip together, the prior load's sign decides
+        flip = np.ones(rp.dim)
+        flip[sl["x0"]] = flip[sl["c"]] = -1.0
+        theta, Sigma = flip * theta, flip[:, None] * Sigma * flip[None, :]
     d = rp.dim
     # the filter's state at sample 0 and its derivative w.r.t. the fit's unknowns
     x = x_prior.copy()
-    x[:ms] += fit.theta[:ms]
-    x[m : m + ms] = fit.theta[ms : 2 * ms]
-    x[est.ls] = fit.theta[sl["c"]]
-    x[est.ps] = fit.theta[sl["par"]]
+    x[:ms] += theta[:ms]
+    x[m : m + ms] = theta[ms : 2 * ms]
+    x[est.ls] = theta[sl["c"]]
+    x[est.ps] = theta[sl["par"]]
     idx = np.arange(ms)
     dQ, dV = np.zeros((d, m)), np.zeros((d, m))
     dQ[idx, idx] = D[idx]
@@ -72,6 +103,7 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
     est._ring = r2.size - 1
     return {
         "startup_iterations": fit.iterations,
+        "startup_starts": starts,
         "startup_converged": fit.converged,
         "startup_chi2_per_datum": fit.data_cost / max(rp.n_data, 1),
     }
