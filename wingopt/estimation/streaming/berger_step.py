@@ -12,9 +12,9 @@ once per mode and stage, and the ``P`` directions are propagated by multiply-add
 arrays. The stiffness depends on all displacements only through the two mean stretches, so its
 tangent is a rank-2 product ``dQ @ [2 kx q, 2 ky q] @ [kxs; kys]``.
 
-Directions are rows: ``dQ[j, i] = d q_i / d theta_j``. The caller's unknowns are laid out as
-``theta = [state (2m), load (ns), parameters (np)]``; load directions act through the modal force
-``du`` and parameter directions through ``(d ex, d ey, d damping)``.
+Directions are rows: ``dQ[j, i] = d q_i / d theta_j``. Rows ``load_rows`` are unit directions of
+the load unknowns (they act through the modal force), rows ``par_rows`` those of the parameters
+(through ``d ex, d ey, d damping``); the state part of every row is whatever the caller seeds.
 """
 
 from __future__ import annotations
@@ -67,6 +67,11 @@ class BergerSample:
         Modal force per unit of each load unknown (its tangent seed).
     load_rows, par_rows : slice
         Rows of the direction arrays that are the load and the parameter unknowns.
+
+    Attributes
+    ----------
+    nonlinear : bool
+        ``False`` leaves the deflection's own stretch out (the linear membrane; tests).
     """
 
     def __init__(self, bm: BergerModal, load_forces: np.ndarray, load_rows: slice, par_rows: slice) -> None:
