@@ -1,9 +1,15 @@
-"""Latency and memory of the streaming estimator (issue 15): per-sample time against the period.
+"""Latency and memory of the streaming estimators (issue 15): per-sample time against the period.
+
+``--model linear`` (default):
 
 Streams the protocol's L1 record (truth 49x25, estimator 25x13, 1 % noise, 1 s at 1 kHz) sample by
 sample through :class:`~wingopt.estimation.streaming.StreamingEstimator`, then continues with
 ``--seconds`` of steady data (the record's final noise-free outputs plus noise of the same level:
-the membrane is in equilibrium after ~1 s). Prints, in one run:
+the membrane is in equilibrium after ~1 s). ``--model nonlinear``: the same with the Berger truth
+(:func:`~wingopt.workflows.realistic_truth.berger_case`: 49x25, 120 modes, 8 sub-steps, L1, 1 %)
+through :class:`~wingopt.estimation.streaming.nonlinear.NonlinearStreamingEstimator`, against the
+batch realistic estimator (:func:`~wingopt.estimation.realistic.realistic_identify`, defaults).
+Prints, in one run:
 
 * p50 / p99 / max per-sample CPU time (``time.thread_time``) and wall time as fractions of the
   1 ms period, for the whole stream, the 1 s record, its tracking phase and the steady part;
@@ -15,6 +21,7 @@ the membrane is in equilibrium after ~1 s). Prints, in one run:
 Usage::
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 nice python benchmarks/bench_streaming.py --seconds 3600
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 nice python benchmarks/bench_streaming.py --model nonlinear --seconds 120
 
 One thread, one process; on a shared machine the wall time includes preemption (the load average
 is printed with the numbers).
@@ -35,10 +42,13 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from wingopt.estimation.mhe import mhe_identify  # noqa: E402
+from wingopt.estimation.realistic import realistic_identify  # noqa: E402
 from wingopt.estimation.streaming import StreamingEstimator, StreamSettings  # noqa: E402
+from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator, NonlinearStreamSettings  # noqa: E402
 from wingopt.membrane import MembraneModel  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
 from wingopt.workflows.protocols import simulate_case  # noqa: E402
+from wingopt.workflows.realistic_truth import berger_case  # noqa: E402
 
 
 def rss_mb() -> float:
@@ -59,6 +69,8 @@ def stats(x: np.ndarray, period: float) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--model", choices=("linear", "nonlinear"), default="linear", help="estimator and truth")
+    ap.add_argument("--tracking-substeps", type=int, default=1, help="nonlinear: sub-steps per sample after start-up")
     ap.add_argument("--seconds", type=float, default=60.0, help="steady data streamed after the 1 s record")
     ap.add_argument("--load", default="L1")
     ap.add_argument("--seed", type=int, default=0)
@@ -69,14 +81,21 @@ def main() -> None:
 
     problem = load_problem("membrane")
     model = MembraneModel.from_problem(problem)
-    case = simulate_case(problem, args.load, 0.01, args.seed, (49, 25), t_end=1.0)
+    nonlinear = args.model == "nonlinear"
+    if nonlinear:
+        case = berger_case(problem, args.load, 0.01, args.seed, t_end=1.0)
+    else:
+        case = simulate_case(problem, args.load, 0.01, args.seed, (49, 25), t_end=1.0)
     meas = dataclasses.replace(case.measurements, noise_std=None)  # the estimators are not told the noise
     dt = float(meas.t[1] - meas.t[0])
     t0 = time.process_time()
-    batch = mhe_identify(model, meas)
+    batch = realistic_identify(model, meas) if nonlinear else mhe_identify(model, meas)
     batch_cpu = time.process_time() - t0
 
-    est = StreamingEstimator(model, StreamSettings(relinearize=args.relinearize))
+    if nonlinear:
+        est = NonlinearStreamingEstimator(model, NonlinearStreamSettings(tracking_substeps=args.tracking_substeps))
+    else:
+        est = StreamingEstimator(model, StreamSettings(relinearize=args.relinearize))
     K0 = meas.count
     K1 = int(round(args.seconds / dt))
     cpu = np.full(K0 + K1, np.nan)  # allocated and touched before the memory baseline
@@ -118,6 +137,8 @@ def main() -> None:
     info = est.info()
     trk = phase[:K0] == 3
     out = {
+        "model": args.model,
+        "tracking_substeps": args.tracking_substeps if nonlinear else None,
         "load_average": os.getloadavg(),
         "streamed_s": (K0 + K1) * dt,
         "samples": K0 + K1,
@@ -140,7 +161,7 @@ def main() -> None:
         "lift_record_rel_diff": abs(record["lift"] / batch.lift[-1] - 1.0),
         "lift_std_record_stream": record["lift_std"],
         "lift_std_record_batch": float(batch.lift_std[-1]),
-        "true_lift": case.true_lift,
+        "true_lift": float(case.lift_history[-1]) if nonlinear else case.true_lift,
         "lift_final": e.lift,
         "lift_std_final": e.lift_std,
         "chi2_per_datum_final": e.chi2_per_datum,
@@ -148,9 +169,13 @@ def main() -> None:
         "rss_mb_after_record": rss0,
         "rss_growth_mb": rss_max - rss0,
         "rss_trace": rss_trace,
-        "normal_equations_drift": info["normal_equations_drift"],
-        "active_unknowns_final": int(est._core.active.size),
     }
+    if nonlinear:
+        out.update(est.parameters(), batch_parameters=batch.info["parameters"])
+    else:
+        out.update(
+            normal_equations_drift=info["normal_equations_drift"], active_unknowns_final=int(est._core.active.size)
+        )
     for key in ("cpu_all", "wall_all", "cpu_record", "cpu_record_tracking", "wall_record_tracking",
                 "cpu_provisional", "cpu_steady", "wall_steady"):  # fmt: skip
         s = out[key]
@@ -160,8 +185,9 @@ def main() -> None:
     for key in ("startup_cpu_s", "startup_wall_s", "batch_cpu_s", "lift_record_stream", "lift_record_batch",
                 "lift_record_rel_diff", "true_lift", "lift_final", "lift_std_final", "chi2_per_datum_final",
                 "rss_mb_after_record", "rss_growth_mb", "normal_equations_drift", "steady_wall_s",
-                "load_average"):  # fmt: skip
-        print(f"{key:22s} {out[key]}")
+                "load_average", "parameters", "parameters_std", "batch_parameters"):  # fmt: skip
+        if key in out:
+            print(f"{key:22s} {out[key]}")
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(out, fh, indent=1, default=float)

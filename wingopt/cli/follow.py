@@ -41,7 +41,8 @@ def add_options(parser) -> None:
         "one estimate per sample: CSV on stdout (t,lift_N,lift_std_N,chi2_per_datum,adequate,phase), appended "
         "and flushed to lift.csv in the hidden working directory .OUT.tmp-*, moved to --out with summary.json at "
         "the end; stops at a line '# end', at the end of stdin, after --idle-timeout or on SIGTERM/SIGINT; the "
-        "summary line (or --json) goes to stderr",
+        "summary line (or --json) goes to stderr; --model nonlinear streams the Berger membrane (an extended Kalman "
+        "filter, prestrains and damping identified), otherwise the linear MHE",
     )
     g.add_argument("--print-every", type=int, default=1, metavar="K", help="print every K-th estimate (default 1)")
     g.add_argument(
@@ -166,7 +167,14 @@ def run_stream(args, mhe_settings) -> int:
     if args.mesh:
         problem = problem.with_mesh(parse_mesh(args.mesh))
     model = MembraneModel.from_problem(problem)
-    est = StreamingEstimator(model, StreamSettings(mhe=mhe_settings), args.noise_std, args.initial_load)
+    if getattr(args, "model", "auto") == "nonlinear":  # auto streams the linear MHE (as the batch on measured data)
+        from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator
+
+        est = NonlinearStreamingEstimator(model, noise_std=args.noise_std, initial_load=args.initial_load)
+        method = "nonlinear-stream"
+    else:
+        est = StreamingEstimator(model, StreamSettings(mhe=mhe_settings), args.noise_std, args.initial_load)
+        method = "mhe-stream"
     source = args.follow or "<stdin>"
     parser = CsvRowParser(problem.sensor_names, source)
     stop: dict = {}
@@ -212,6 +220,7 @@ def run_stream(args, mhe_settings) -> int:
                 failure = exc
                 lines.reason = f"bad input: {exc}"
             summary = _summary(est, parser, lines.reason, cpu, wall, bad, first_bad, source, problem, live.rows)
+            summary["method"] = method
             summary["wall_s"] = time.perf_counter() - t_start
             write_json(tmp / "summary.json", to_jsonable(summary))
     finally:
@@ -219,7 +228,7 @@ def run_stream(args, mhe_settings) -> int:
             signal.signal(sig, h)
     if failure is not None:
         raise failure
-    line = f"mhe-stream: {summary['samples']} samples, lift {summary['lift_N']:.5g} N"
+    line = f"{method}: {summary['samples']} samples, lift {summary['lift_N']:.5g} N"
     if summary["lift_std_N"] is not None:
         line += f" ± {summary['lift_std_N']:.2g}"
     line += f", stopped: {summary['stopped']} -> {args.out}"

@@ -1,0 +1,109 @@
+"""Start-up of the nonlinear streaming estimator: the batch fit of the buffered samples, handed to the filter.
+
+The filter's weak point is its start: the prior is far from the answer and the first samples (the
+ringing bubble) carry most of what identifies the tension, so linearising at a poor estimate
+there biases everything after. The start-up therefore solves the realistic estimator's problem
+(:class:`~wingopt.estimation.realistic.record_problem.RecordProblem`, Levenberg–Marquardt,
+:func:`~wingopt.estimation.realistic.solver.levenberg_marquardt`) on the buffered samples, from the
+provisional filter's load and parameters, and converts its answer into the filter's mean and
+covariance at the last buffered sample: the state is propagated from the fitted initial state
+with the exact tangent of the unknowns (``G``, ``P = G Sigma G^T``, ``Sigma`` the fit's posterior
+covariance). From then on the filter continues as the batch would with an arrival cost. When the
+fit from the provisional estimate does not fit the data (chi-square per datum above 1.15, the
+batch's tolerance) it is also started from the batch's amplitude scan and the better fit is kept;
+without a bubble prior the sign is the prior load's (the batch's rule).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wingopt.estimation.realistic.record_problem import RecordProblem
+from wingopt.estimation.realistic.solver import levenberg_marquardt
+
+__all__ = ["batch_start", "TOLERANCE"]
+
+TOLERANCE = 0.15
+"""The batch's adequacy tolerance on the chi-square per datum (:mod:`wingopt.estimation.realistic.adequacy`)."""
+
+
+def _scan(rp: RecordProblem) -> np.ndarray:
+    """The batch's start: the best amplitude along the smoothest shape, both signs (one batched run).
+
+    The same grid and cost as the realistic estimator's start-up scan (a private function there).
+    """
+    amps = np.array([0.1, 0.2, 0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 3.0])
+    amps = np.concatenate([amps, -amps])
+    th = np.zeros((amps.size, rp.dim))
+    th[:, rp.slices["c"].start] = amps
+    Q = rp.trajectory(th).real
+    cost = [float(np.sum(((rp.y - rp.model.outputs(Q[:, b])) / rp.sigma)[rp.valid] ** 2)) for b in range(amps.size)]
+    return th[int(np.argmin(np.array(cost) + amps**2))]
+
+
+def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> dict:
+    """Fit the buffered samples ``Y`` and set ``est.x``, ``est.P`` at the last one; returns diagnostics.
+
+    ``est`` is a :class:`~wingopt.estimation.streaming.nonlinear.NonlinearStreamingEstimator`
+    with its prior set (``_D``, ``_prior_state``) and a provisional estimate in ``est.x``.
+    """
+    bm, m, ms = est.bm, est.m, min(est.settings.state_modes, est.m)
+    x_prior, _ = est._prior_state(Y)
+    D = est._D
+    x_mean = np.concatenate([D[:m] * x_prior[:m], np.zeros(m)])
+    t = est.dt * np.arange(Y.shape[0])
+    rp = RecordProblem(bm, est.shapes, t, Y, sigma, est.prior, x_mean, D.copy(), None, True, ms)
+    sl = rp.slices
+    theta0 = np.zeros(rp.dim)
+    theta0[sl["c"]] = est.x[est.ls]  # the provisional filter's load and parameters: a start near the optimum
+    theta0[sl["par"]] = est.x[est.ps]
+    fit = levenberg_marquardt(rp, theta0, max_iter)
+    starts = 1
+    if fit.data_cost > (1 + TOLERANCE) * rp.n_data:  # not a fit: the batch's start (amplitude scan) too
+        other = levenberg_marquardt(rp, _scan(rp), max_iter)
+        starts = 2
+        fit = other if other.cost < fit.cost else fit
+    theta, Sigma = fit.theta, fit.covariance
+    peak = est.model.problem.identification.initial_deflection
+    if peak == 0 and est._lift @ theta[sl["c"]] * np.sign(est.initial_load) < 0:
+        # sign-blind sensors and no bubble: state and load flip together, the prior load's sign decides
+        flip = np.ones(rp.dim)
+        flip[sl["x0"]] = flip[sl["c"]] = -1.0
+        theta, Sigma = flip * theta, flip[:, None] * Sigma * flip[None, :]
+    d = rp.dim
+    # the filter's state at sample 0 and its derivative w.r.t. the fit's unknowns
+    x = x_prior.copy()
+    x[:ms] += theta[:ms]
+    x[m : m + ms] = theta[ms : 2 * ms]
+    x[est.ls] = theta[sl["c"]]
+    x[est.ps] = theta[sl["par"]]
+    idx = np.arange(ms)
+    dQ, dV = np.zeros((d, m)), np.zeros((d, m))
+    dQ[idx, idx] = D[idx]
+    dV[ms + idx, idx] = D[m + idx]
+    q, v = D[:m] * x[:m], D[m:] * x[m : 2 * m]
+    ex, ey, damping, seeds = est._params(x)
+    u = x[est.ls] @ est._forces
+    for _ in range(Y.shape[0] - 1):
+        q, v, dQ, dV = est.fit_sampler.step_tangent(q, v, u, ex, ey, damping, dQ, dV, seeds)
+    x[:m], x[m : 2 * m] = q / D[:m], v / D[m:]
+    est.x = x
+    est.G = np.vstack([dQ.T / D[:m, None], dV.T / D[m:, None]])
+    est.Sigma = Sigma
+    # the window's misfit: the fit's residuals of the last samples
+    R = np.zeros(Y.shape)
+    R[rp.valid] = fit.residuals
+    W = est._nis.size
+    tail = slice(max(Y.shape[0] - W, 0), Y.shape[0])
+    r2 = (R[tail] ** 2).sum(axis=1)
+    est._nis[:] = 0.0
+    est._nd[:] = 0
+    est._nis[: r2.size] = r2
+    est._nd[: r2.size] = rp.valid[tail].sum(axis=1)
+    est._ring = r2.size - 1
+    return {
+        "startup_iterations": fit.iterations,
+        "startup_starts": starts,
+        "startup_converged": fit.converged,
+        "startup_chi2_per_datum": fit.data_cost / max(rp.n_data, 1),
+    }
