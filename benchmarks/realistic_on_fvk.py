@@ -44,6 +44,8 @@ from wingopt.workflows.records import Gust, simulate_record  # noqa: E402
 from wingopt.workflows.studies import load_field, run_method  # noqa: E402
 
 GUST = Gust(start=0.4, duration=0.2, amplitude=0.3)
+SPLIT = {"unequal": True}
+"""``--isotropic`` sets it False: truth prestrains ``(f e0, f e0)`` instead of ``(f e0, (2 - f) e0)``."""
 
 
 @functools.lru_cache(maxsize=4)
@@ -52,7 +54,12 @@ def _clean(load: str, truth: str, pf: float, damping: float):
     e0 = problem.material.prestrain
     gust = GUST if load.endswith("+gust") else None
     rec = simulate_record(
-        problem, load.split("+")[0], truth=truth, prestrain=(pf * e0, (2.0 - pf) * e0), damping_scale=damping, gust=gust
+        problem,
+        load.split("+")[0],
+        truth=truth,
+        prestrain=(pf * e0, (2.0 - pf if SPLIT["unequal"] else pf) * e0),
+        damping_scale=damping,
+        gust=gust,
     )
     absl = integrate(rec.model.space, lambda x, y, p=rec.load: np.abs(p(x, y)), order=8)
     return rec, absl
@@ -121,6 +128,7 @@ def main(argv=None) -> None:
     ap.add_argument("loads", help="comma-separated: L1,L2,L3,LE,L1+gust")
     ap.add_argument("--truth", default="fvk", choices=("fvk", "linear", "berger"))
     ap.add_argument("--prestrain", default="1", help="truth prestrain factors f: (f e0, (2 - f) e0)")
+    ap.add_argument("--isotropic", action="store_true", help="truth prestrains (f e0, f e0) instead")
     ap.add_argument("--damping", default="1", help="truth damping factors")
     ap.add_argument("--noise", type=float, default=0.01)
     ap.add_argument("--seeds", default="0", help="comma-separated, or a range a-b (b excluded)")
@@ -134,6 +142,7 @@ def main(argv=None) -> None:
     settings = RealisticSettings(
         membrane_model=a.membrane_model, cubic_modes=a.cubic_modes, stretch_gain=a.stretch_gain
     )
+    SPLIT["unequal"] = not a.isotropic
     rows = []
     grid = itertools.product(
         a.loads.split(","),

@@ -390,3 +390,4 @@ def test_bad_row_keeps_the_record_and_exits_2(small_cli, tmp_path):
     assert summary["samples"] == 99 == len(_lift_rows(out))
     assert main(["identify", str(d / "small.toml"), "--data", "-", "--method", "jekf", "--out", str(out)]) == 2
     assert main(["identify", str(d / "small.toml"), "--follow", str(live), "--print-every", "0", "--out", "x"]) == 2
+    assert main(["identify", str(d / "small.toml"), "--follow", str(live), "--model", "fvk", "--out", "x"]) == 2

@@ -167,7 +167,13 @@ def run_stream(args, mhe_settings) -> int:
     if args.mesh:
         problem = problem.with_mesh(parse_mesh(args.mesh))
     model = MembraneModel.from_problem(problem)
-    if getattr(args, "model", "auto") == "nonlinear":  # auto streams the linear MHE (as the batch on measured data)
+    if getattr(args, "model", "auto") == "fvk":
+        raise InputError(
+            "--model fvk: the FvK membrane is batch only (wingopt identify --data FILE); a stream runs the linear "
+            "MHE (--model auto or linear) or the Berger membrane (--model nonlinear)"
+        )
+    # auto streams the linear MHE: the nonlinear stream (Berger) is not measured on FvK truth
+    if getattr(args, "model", "auto") == "nonlinear":
         from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator
 
         est = NonlinearStreamingEstimator(model, noise_std=args.noise_std, initial_load=args.initial_load)
