@@ -155,3 +155,20 @@ def test_identify_model_fvk_selects_the_fvk_membrane():
     run = identify("membrane", load="L1", t_end=0.1, model="fvk", realistic_settings=s)
     assert run.result.info["model"] == "nonlinear (FvK cubic, 6 modes)"
     assert np.isfinite(run.result.lift[-1])
+
+
+def test_measured_data_default_to_the_fvk_estimator():
+    """``identify(data=...)`` with ``model="auto"``: the realistic estimator with the FvK membrane."""
+    from wingopt.problem import load_problem
+    from wingopt.workflows.identify import identify
+    from wingopt.workflows.realistic_truth import fvk_case
+
+    problem = load_problem("membrane")
+    case = fvk_case(problem, "L1", 0.01, 0, nodes=(17, 9), t_end=0.2)
+    run = identify(problem, data=case.measurements, nodes=(13, 7))
+    assert "FvK cubic" in run.result.info["backend"]
+    assert set(run.summary()["parameters"]) >= {"prestrain_x", "prestrain_y"}
+    simulated = identify(problem, load="L1", truth="fvk", truth_nodes=(17, 9), nodes=(13, 7), t_end=0.2)
+    assert "FvK cubic" in simulated.result.info["backend"]
+    linear = identify(problem, load="L1", truth_nodes=(17, 9), nodes=(13, 7), t_end=0.2)
+    assert linear.summary()["model"] == "linear"  # the seed's simulated protocol stays the linear MHE
