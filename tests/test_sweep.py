@@ -9,6 +9,7 @@ import logging
 import os
 import signal
 import sys
+import time
 from pathlib import Path
 
 import cloudpickle
@@ -101,6 +102,28 @@ def _die_once(marker: str, i: int) -> dict:
         Path(marker).write_text(str(os.getpid()))
         os.kill(os.getpid(), signal.SIGKILL)
     return {"i": i, "square": i * i}
+
+
+def _hang_once(marker: str, i: int) -> dict:
+    """Task ``i`` hangs (60 s) the first time it runs: a task its worker holds without progress."""
+    if i == 1 and not os.path.exists(marker):
+        Path(marker).write_text(str(os.getpid()))
+        time.sleep(60)
+        return {"i": i, "attempt": "first"}
+    return {"i": i, "attempt": "again" if i == 1 else "only"}
+
+
+def test_a_stalled_task_is_submitted_again_on_another_worker(tmp_path):
+    """No task finished for ``stall_s``: the held task is cancelled and run again elsewhere."""
+    marker = str(tmp_path / "hung")
+    tasks = [SweepTask(f"t{i}", _hang_once, (marker, i), cost=10 - i) for i in range(3)]
+    settings = EngineSettings(mode="local", workers=2, progress=False, dashboard=False, stall_s=8.0)
+    t0 = time.perf_counter()
+    with Engine(settings) as eng:
+        records = {r["key"]: r for r in eng.run(tasks)}
+    assert time.perf_counter() - t0 < 50  # did not wait for the 60 s hang
+    assert all(r["status"] == "ok" for r in records.values()) and len(records) == 3
+    assert records["t1"]["attempt"] == "again" and records["t1"]["pid"] != int(Path(marker).read_text())
 
 
 def test_a_worker_killed_mid_sweep_is_replaced_and_every_record_is_present(cluster, tmp_path):

@@ -14,7 +14,10 @@ task that names them. :class:`Engine` runs them
 
 Tasks are submitted longest first (``cost``). A task whose worker dies is re-run on another
 worker, an exception is retried, both up to ``retries`` times; then the task yields a failure
-record (``status = "failed"`` and the error) instead of stopping the study.
+record (``status = "failed"`` and the error) instead of stopping the study. When no task has
+finished for ``stall_s`` seconds, the tasks the workers hold are cancelled and submitted again,
+preferring the other workers (a dask dependency fetch was once seen to wait forever), also up to
+``retries`` times.
 """
 
 from __future__ import annotations
@@ -82,6 +85,7 @@ class EngineSettings:
     retries: int = 2
     progress: bool = True
     dashboard: bool = True
+    stall_s: float | None = 1800.0
 
     def __post_init__(self):
         if self.mode not in MODES:
@@ -90,6 +94,8 @@ class EngineSettings:
             raise InputError(f"workers = {self.workers}: expected a positive integer")
         if self.retries < 0:
             raise InputError(f"retries = {self.retries}: expected a non-negative integer")
+        if self.stall_s is not None and not self.stall_s > 0:
+            raise InputError(f"stall_s = {self.stall_s!r}: expected a positive number of seconds or None")
         if self.mode == "scheduler" and not self.scheduler:
             raise InputError("scheduler: expected an address such as tcp://host:8786")
 
@@ -267,7 +273,7 @@ class Engine:
                         yield _failure(task, exc)
 
     def _run_dask(self, tasks: Sequence[SweepTask], shared: dict[str, SharedInput]) -> Iterator[dict]:
-        from distributed import as_completed
+        from distributed import wait
 
         client, retries = self.client, self.settings.retries
         run = uuid.uuid4().hex[:8]
@@ -299,22 +305,63 @@ class Engine:
                 pure=False,
             )
             by_future[fut.key] = (fut, task)
+        attempts: dict[str, int] = {}
         try:
-            for fut in as_completed([f for f, _ in by_future.values()]):
-                _, task = by_future.pop(fut.key)
-                if fut.status == "finished":
-                    yield fut.result()
-                else:
-                    try:
-                        exc = fut.exception()
-                    except Exception as err:  # cancelled (e.g. the scheduler restarted)
-                        exc = err
-                    log.warning("task %s failed after %d retries: %s", task.key, retries, exc)
-                    yield _failure(task, exc)
-                fut.release()
+            while by_future:
+                try:
+                    done = wait([f for f, _ in by_future.values()], self.settings.stall_s, "FIRST_COMPLETED").done
+                except TimeoutError:
+                    yield from self._resubmit_stalled(by_future, futures, attempts, run)
+                    continue
+                for fut in done:
+                    _, task = by_future.pop(fut.key)
+                    if fut.status == "finished":
+                        yield fut.result()
+                    else:
+                        try:
+                            exc = fut.exception()
+                        except Exception as err:  # cancelled (e.g. the scheduler restarted)
+                            exc = err
+                        log.warning("task %s failed after %d retries: %s", task.key, retries, exc)
+                        yield _failure(task, exc)
+                    fut.release()
         finally:
             # Interrupted (or done): nothing left running for this study.
             client.cancel([f for f, _ in by_future.values()] + list(futures.values()))
+
+    def _resubmit_stalled(self, by_future: dict, futures: dict, attempts: dict, run: str) -> Iterator[dict]:
+        """Cancel the tasks the workers hold (all pending ones if none) and submit them again elsewhere."""
+        client, retries = self.client, self.settings.retries
+        held = {w: {k for k in keys if k in by_future} for w, keys in client.processing().items()}
+        stuck = {w for w, keys in held.items() if keys}
+        keys = set().union(*held.values()) or set(by_future)
+        others = [w for w in client.scheduler_info()["workers"] if w not in stuck] or None
+        log.warning(
+            "no task finished for %.0f s: %d task(s) submitted again (held by %d worker(s))",
+            self.settings.stall_s,
+            len(keys),
+            len(stuck),
+        )
+        for key in keys:
+            fut, task = by_future.pop(key)
+            fut.cancel()
+            attempts[task.key] = n = attempts.get(task.key, 0) + 1
+            if n > retries:
+                yield _failure(task, TimeoutError(f"no progress for {self.settings.stall_s:g} s, {n} times"))
+                continue
+            new = client.submit(
+                _execute,
+                task.fn,
+                task.key,
+                task.args,
+                *[futures[k] for k in task.shared],
+                key=f"{_dask_key('task', task.key, run)}-again{n}",
+                workers=others,
+                allow_other_workers=True,
+                retries=retries,
+                pure=False,
+            )
+            by_future[new.key] = (new, task)
 
 
 def _jobqueue_cluster(kind: str, config: dict):
