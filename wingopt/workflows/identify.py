@@ -371,7 +371,8 @@ def _model_form_band(membrane, meas: Measurements, result, initial_load):
 
     alt = realistic_identify(membrane, meas, RealisticSettings(membrane_model="fvk"), initial_load=initial_load)
     diff = float(result.lift[-1] - alt.lift[-1])
-    std = np.sqrt(np.asarray(result.lift_std, dtype=float) ** 2 + diff**2)
+    own = np.zeros_like(result.lift) if result.lift_std is None else np.asarray(result.lift_std, dtype=float)
+    std = np.sqrt(own**2 + diff**2)
     info = dict(result.info)
     info["model_form"] = {
         "alternative": alt.info.get("model", "realistic (FvK)"),
