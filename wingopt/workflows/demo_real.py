@@ -76,10 +76,10 @@ def real_section(rep: Report, tmp: Path, summary: dict, cfg) -> None:
     rep.paragraph(
         f"Truth: the Föppl–von Kármán membrane (in-plane displacements, nonlinear strains) on {nx}x{ny}, prestrain "
         f"({ex:g}, {ey:g}) where the problem file says 0.05 in both directions, L1 from the 1 cm bubble, "
-        f"{cfg.identify_t_end:g} s at 1 ms, {100 * cfg.noise:g} % noise. Left: the seed's linear MHE (file's tension); "
-        "right: the realistic estimator with the cubic modal FvK membrane, prestrains and damping identified (the "
-        "default of wingopt identify --data). The band is 1 sigma; chi-square per datum near 1 means the data fit "
-        "the model; a misfit flag widens the band."
+        f"{cfg.identify_t_end:g} s at 1 ms, {100 * cfg.noise:g} % noise. First row: the seed's linear MHE "
+        "(file's tension); second: the realistic estimator with the cubic modal FvK membrane, prestrains and "
+        "damping identified (the default of wingopt identify --data). The band is 1 sigma; chi-square per "
+        "datum near 1 means the data fit the model; a misfit flag widens the band."
     )
     rep.table(
         ["estimator", "lift (true) N", "lift error", "band", "covers", "chi2/datum", "adequate", "field error",
