@@ -28,26 +28,11 @@ import numpy as np
 from wingopt.design import DesignSettings, InformationSettings, design_sensors
 from wingopt.design.montecarlo import IdentifyTask, run_task
 from wingopt.design.rerank import MonteCarloSettings, rerank
-from wingopt.design.selection import overlap_matrix
+from wingopt.design.selection import random_layouts
 from wingopt.problem import load_problem, parse_mesh
 from wingopt.workflows.sweep.engine import Engine, EngineSettings, SweepTask
 
 HELDOUT = ["L1", "L2", "L3", "leading-edge", "consistency"] + [f"smooth:1000:{k}" for k in range(5)]
-
-
-def random_layouts(rects: np.ndarray, K: int, count: int, rng, pool: np.ndarray) -> list[np.ndarray]:
-    ov = overlap_matrix(rects)
-    out = []
-    while len(out) < count:
-        chosen: list[int] = []
-        for i in rng.permutation(pool):
-            if not chosen or not ov[i, chosen].any():
-                chosen.append(int(i))
-                if len(chosen) == K:
-                    break
-        if len(chosen) == K:
-            out.append(np.array(chosen))
-    return out
 
 
 def engine_mapper(eng: Engine, prefix: str):

@@ -36,7 +36,7 @@ from wingopt.design.information import ModalSensitivity
 from wingopt.design.montecarlo import IdentifyTask, run_task
 from wingopt.design.priors import gp_prior, smooth_loads
 from wingopt.design.risk import BayesRisk
-from wingopt.design.selection import overlap_matrix
+from wingopt.design.selection import random_layouts
 from wingopt.membrane import MembraneModel
 from wingopt.problem import load_problem, parse_mesh
 from wingopt.workflows.sweep.engine import Engine, EngineSettings, SweepTask
@@ -45,23 +45,6 @@ HELDOUT = "L1,L2,L3,leading-edge,consistency,smooth:1000:0,smooth:1000:1,smooth:
 MC_LOADS = "smooth:7:0:0.2,smooth:7:1:0.2,smooth:7:2:0.2,smooth:7:3:0.2"
 BROAD_LOADS = "smooth:8:0:0.1,smooth:8:1:0.1"
 """Localised design-time loads (GP length 0.1 chord, seed 8) that broaden the Monte Carlo prior."""
-
-
-def random_layouts(rects: np.ndarray, K: int, count: int, rng, pool: np.ndarray | None = None) -> list[np.ndarray]:
-    """``count`` random non-overlapping K-subsets of the candidates (``pool``: allowed indices)."""
-    ov = overlap_matrix(rects)
-    pool = np.arange(len(rects)) if pool is None else pool
-    out = []
-    while len(out) < count:
-        chosen: list[int] = []
-        for i in rng.permutation(pool):
-            if not chosen or not ov[i, chosen].any():
-                chosen.append(int(i))
-                if len(chosen) == K:
-                    break
-        if len(chosen) == K:
-            out.append(np.array(chosen))
-    return out
 
 
 def criteria(problem, spec: str, info: InformationSettings):

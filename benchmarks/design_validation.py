@@ -34,30 +34,13 @@ import scipy.stats as st
 from wingopt.design import DesignSettings, InformationSettings, design_sensors
 from wingopt.design.criteria import LinearCriterion
 from wingopt.design.montecarlo import IdentifyTask, run_task
-from wingopt.design.selection import overlap_matrix
+from wingopt.design.selection import random_layouts
 from wingopt.problem import load_problem, parse_mesh
 from wingopt.workflows.studies import sensor_grid
 
 HELDOUT = ["L1", "L2", "L3", "leading-edge", "consistency"] + [f"smooth:1000:{k}" for k in range(5)]
 RANK_LOADS = ["L2", "L3", "leading-edge", "consistency", "smooth:1000:0"]
 GRIDS = {4: (2, 2), 6: (3, 2), 8: (4, 2), 12: (4, 3), 32: (8, 4)}
-
-
-def random_layouts(rects: np.ndarray, K: int, count: int, rng, pool: np.ndarray | None = None) -> list[np.ndarray]:
-    """``count`` random non-overlapping K-subsets of the candidates (``pool``: allowed indices)."""
-    ov = overlap_matrix(rects)
-    pool = np.arange(len(rects)) if pool is None else pool
-    out = []
-    while len(out) < count:
-        chosen: list[int] = []
-        for i in rng.permutation(pool):
-            if not chosen or not ov[i, chosen].any():
-                chosen.append(int(i))
-                if len(chosen) == K:
-                    break
-        if len(chosen) == K:
-            out.append(np.array(chosen))
-    return out
 
 
 def measure(problem, layouts: dict, loads, seeds, args, pool) -> dict:

@@ -14,7 +14,7 @@ from wingopt.design.criteria import LinearCriterion
 from wingopt.design.information import InformationSettings, ModalSensitivity
 from wingopt.design.priors import gp_prior, smooth_loads, tikhonov_prior
 from wingopt.design.risk import BayesRisk
-from wingopt.design.selection import greedy, overlap_matrix, relax, round_weights, swap_improve
+from wingopt.design.selection import greedy, overlap_matrix, random_layouts, relax, round_weights, swap_improve
 from wingopt.design.toml_text import problem_text, read_problem_table, sensors_text
 from wingopt.errors import InputError
 from wingopt.membrane import MembraneModel, StretchSensors, load_case
@@ -234,3 +234,19 @@ def _has_plate() -> bool:
     from wingopt.problem import builtin_problems
 
     return "plate" in builtin_problems()
+
+
+def test_random_layouts_are_non_overlapping_k_subsets_of_the_pool():
+    # a 4 x 3 grid of unit cells and 6 shifted cells overlapping them
+    cells = [(x, x + 1, y, y + 1) for x in range(4) for y in range(3)]
+    shifted = [(x + 0.5, x + 1.5, y + 0.5, y + 1.5) for x in range(3) for y in range(2)]
+    rects = np.array(cells + shifted, dtype=float)
+    pool = np.arange(2, len(rects))
+    lays = random_layouts(rects, 3, 25, np.random.default_rng(0), pool)
+    ov = overlap_matrix(rects)
+    assert len(lays) == 25 and len({tuple(sorted(x)) for x in lays}) > 10
+    for lay in lays:
+        assert len(set(lay)) == 3 and set(lay) <= set(pool)
+        assert not ov[np.ix_(lay, lay)][~np.eye(3, dtype=bool)].any()
+    again = random_layouts(rects, 3, 25, np.random.default_rng(0), pool)
+    assert all(np.array_equal(a, b) for a, b in zip(lays, again))

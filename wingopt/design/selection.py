@@ -23,7 +23,7 @@ import numpy as np
 
 from wingopt.errors import InputError, SolverError
 
-__all__ = ["Relaxation", "relax", "round_weights", "swap_improve", "greedy", "overlap_matrix"]
+__all__ = ["Relaxation", "relax", "round_weights", "swap_improve", "greedy", "overlap_matrix", "random_layouts"]
 
 log = logging.getLogger(__name__)
 
@@ -37,6 +37,29 @@ def overlap_matrix(rects: np.ndarray) -> np.ndarray:
         & (r[:, None, 2] < r[None, :, 3])
         & (r[:, None, 3] > r[None, :, 2])
     )
+
+
+def random_layouts(
+    rects: np.ndarray, K: int, count: int, rng: np.random.Generator, pool: np.ndarray | None = None
+) -> list[np.ndarray]:
+    """``count`` random non-overlapping ``K``-subsets of the candidates (``pool``: allowed indices).
+
+    Each layout takes candidates in a random order, keeping one when it overlaps none kept so far;
+    draws that cannot reach ``K`` are discarded. The baseline of the design validations.
+    """
+    ov = overlap_matrix(rects)
+    pool = np.arange(len(rects)) if pool is None else pool
+    out = []
+    while len(out) < count:
+        chosen: list[int] = []
+        for i in rng.permutation(pool):
+            if not chosen or not ov[i, chosen].any():
+                chosen.append(int(i))
+                if len(chosen) == K:
+                    break
+        if len(chosen) == K:
+            out.append(np.array(chosen))
+    return out
 
 
 @dataclass(frozen=True)
