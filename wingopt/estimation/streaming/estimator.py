@@ -57,14 +57,12 @@ from wingopt.estimation.mhe.model import MHEModel
 from wingopt.estimation.mhe.start import smooth_load_shapes
 from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
 from wingopt.estimation.streaming.rows import LinearRows, RtiNormalEquations
-from wingopt.estimation.streaming.types import Estimate, StreamSettings
+from wingopt.estimation.streaming.types import Estimate, SampleClock, StreamSettings
 from wingopt.membrane import MembraneModel, bubble
 
 __all__ = ["StreamSettings", "Estimate", "StreamingEstimator"]
 
 log = logging.getLogger(__name__)
-
-_JITTER = 0.01  # relative deviation of a time step from the sample period that is tolerated
 
 
 class StreamingEstimator:
@@ -111,8 +109,7 @@ class StreamingEstimator:
         self.initial_deflection = float(peak)
         self.count = 0
         self.phase = "waiting"
-        self.dt: float | None = None
-        self._t_prev = None
+        self._clock = SampleClock(self.names)
         self._buf_t: list[float] = []
         self._buf_y: list[np.ndarray] = []
         self._core: RtiNormalEquations | None = None
@@ -120,27 +117,15 @@ class StreamingEstimator:
         self._isf: dict[int, float] = {}
         self.last: Estimate | None = None
 
+    @property
+    def dt(self) -> float | None:
+        """The sample period (s), fixed by the first two samples; ``None`` before."""
+        return self._clock.dt
+
     # -- public ------------------------------------------------------------------------------
     def push(self, t: float, y) -> Estimate:
         """Add one sample (time ``t`` in s, one value per sensor, NaN = missing); return the estimate."""
-        t = float(t)
-        y = np.asarray(y, dtype=float).reshape(-1)
-        if y.size != self.p:
-            raise InputError(f"push: {y.size} values for {self.p} sensors ({', '.join(self.names)})")
-        if not np.isfinite(t):
-            raise InputError(f"push: t = {t!r}: expected a finite time (s)")
-        if self._t_prev is not None:
-            step = t - self._t_prev
-            if self.dt is None:
-                if not step > 0:
-                    raise InputError(f"push: t = {t!r} after {self._t_prev!r}: expected increasing times")
-                self.dt = step
-            elif abs(step / self.dt - 1.0) > _JITTER:
-                raise InputError(
-                    f"push: t = {t!r} after {self._t_prev!r}: expected the sample period {self.dt:.6g} s "
-                    "(fill gaps with missing samples)"
-                )
-        self._t_prev = t
+        t, y = self._clock.accept(t, y)
         k = self.count
         self.count += 1
         if self.phase in ("waiting", "provisional"):

@@ -65,14 +65,12 @@ from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPri
 from wingopt.estimation.streaming.berger_step import BergerSample
 from wingopt.estimation.streaming.nonlinear_start import TOLERANCE, batch_start
 from wingopt.estimation.streaming.running_noise import RunningNoise
-from wingopt.estimation.streaming.types import Estimate, NonlinearStreamSettings
+from wingopt.estimation.streaming.types import Estimate, NonlinearStreamSettings, SampleClock
 from wingopt.membrane import MembraneModel, bubble
 
 __all__ = ["NonlinearStreamSettings", "NonlinearStreamingEstimator"]
 
 log = logging.getLogger(__name__)
-
-_JITTER = 0.01
 
 
 class NonlinearStreamingEstimator:
@@ -114,8 +112,7 @@ class NonlinearStreamingEstimator:
         self._build(ident.dt or 1e-3)  # rebuilt at the first estimate if the stream's period differs
         self.count = 0
         self.phase = "waiting"
-        self.dt: float | None = None
-        self._t_prev: float | None = None
+        self._clock = SampleClock(self.names)
         self._buf: list[np.ndarray] = []
         self.noise_source = "given" if self._sigma_given is not None else None
         self._running: RunningNoise | None = None
@@ -181,27 +178,15 @@ class NonlinearStreamingEstimator:
             seeds[PARAMETERS.index(name), i] = std * (vals[name] if name == "damping" else 1.0)
         return vals["prestrain_x"], vals["prestrain_y"], vals["damping"], seeds
 
+    @property
+    def dt(self) -> float | None:
+        """The sample period (s), fixed by the first two samples; ``None`` before."""
+        return self._clock.dt
+
     # -- public ----------------------------------------------------------------------------------
     def push(self, t: float, y) -> Estimate:
         """Add one sample (time ``t`` in s, one value per sensor, NaN = missing); return the estimate."""
-        t = float(t)
-        y = np.array(y, dtype=float).reshape(-1)  # a copy: the buffer and the noise level keep it
-        if y.size != self.p:
-            raise InputError(f"push: {y.size} values for {self.p} sensors ({', '.join(self.names)})")
-        if not np.isfinite(t):
-            raise InputError(f"push: t = {t!r}: expected a finite time (s)")
-        if self._t_prev is not None:
-            step = t - self._t_prev
-            if self.dt is None:
-                if not step > 0:
-                    raise InputError(f"push: t = {t!r} after {self._t_prev!r}: expected increasing times")
-                self.dt = step
-            elif abs(step / self.dt - 1.0) > _JITTER:
-                raise InputError(
-                    f"push: t = {t!r} after {self._t_prev!r}: expected the sample period {self.dt:.6g} s "
-                    "(fill gaps with missing samples)"
-                )
-        self._t_prev = t
+        t, y = self._clock.accept(t, y)
         k = self.count
         self.count += 1
         phase = self.phase

@@ -9,7 +9,7 @@ import numpy as np
 from wingopt.errors import InputError
 from wingopt.estimation.mhe import MHESettings
 
-__all__ = ["StreamSettings", "NonlinearStreamSettings", "Estimate"]
+__all__ = ["StreamSettings", "NonlinearStreamSettings", "Estimate", "SampleClock"]
 
 
 @dataclass(frozen=True)
@@ -153,3 +153,41 @@ class NonlinearStreamSettings:
                 raise InputError(f"nonlinear streaming {name} = {val!r}: expected a positive number")
         if not (np.isfinite(self.load_walk) and self.load_walk >= 0):
             raise InputError(f"nonlinear streaming load_walk = {self.load_walk!r}: expected a number >= 0")
+
+
+class SampleClock:
+    """The checks of one pushed sample, shared by the streaming estimators.
+
+    ``y`` must hold one value per sensor (NaN = missing) and ``t`` be finite; the first step fixes
+    the sample period ``dt`` (increasing times), later steps must match it within ``JITTER``
+    (relative): gaps are filled with missing samples by the reader, not skipped.
+    """
+
+    JITTER = 0.01
+
+    def __init__(self, names) -> None:
+        self.names = tuple(names)
+        self.dt: float | None = None
+        self.t_prev: float | None = None
+
+    def accept(self, t: float, y) -> tuple[float, np.ndarray]:
+        """``(t, y)`` as a float and a fresh 1-D array, after the checks; raises :class:`InputError`."""
+        t = float(t)
+        y = np.array(y, dtype=float).reshape(-1)  # a copy: the estimators buffer it
+        if y.size != len(self.names):
+            raise InputError(f"push: {y.size} values for {len(self.names)} sensors ({', '.join(self.names)})")
+        if not np.isfinite(t):
+            raise InputError(f"push: t = {t!r}: expected a finite time (s)")
+        if self.t_prev is not None:
+            step = t - self.t_prev
+            if self.dt is None:
+                if not step > 0:
+                    raise InputError(f"push: t = {t!r} after {self.t_prev!r}: expected increasing times")
+                self.dt = step
+            elif abs(step / self.dt - 1.0) > self.JITTER:
+                raise InputError(
+                    f"push: t = {t!r} after {self.t_prev!r}: expected the sample period {self.dt:.6g} s "
+                    "(fill gaps with missing samples)"
+                )
+        self.t_prev = t
+        return t, y
