@@ -74,22 +74,11 @@ def berger_case(
     Q = bm.simulate(bm.to_modal(z0), np.zeros(bm.m), forces, ex, ey, damping, nonlinear=nonlinear)
     Z = bm.deflection(Q)
     clean = truth_model.sensors.outputs(Z)
-    noisy, sigma = add_noise(clean, noise, seed)
-    traj = Trajectory(t, Z, np.gradient(Z, dt, axis=0), factor[:-1, None] * f[None], clean)
+    noisy, _ = add_noise(clean, noise, seed)
     kind = "Berger" if nonlinear else "linear"
-    meas = Measurements(
-        t=t,
-        values=noisy,
-        sensor_names=problem.sensor_names,
-        noise_std=None,
-        source=f"{kind} truth {load} {100 * noise:g}% seed {seed} {nodes[0]}x{nodes[1]} "
-        f"e0=({ex:g},{ey:g}) d={damping:g}",
+    return _case(
+        problem, kind, load, pl, f, truth_model, t, Z, factor, clean, noisy, noise, seed, nodes, (ex, ey), damping
     )
-    final = float(factor[-1])
-    scaled = PressureLoad(pl.name, lambda x, y: final * pl(x, y), pl.description, pl.breaks_x, pl.breaks_y)
-    params = {"prestrain_x": ex, "prestrain_y": ey, "damping": damping}
-    case = NonlinearCase(scaled, truth_model, traj, meas, noise, seed, None, params)
-    return dataclasses.replace(case, lift_history=factor * case.true_lift / final)
 
 
 def fvk_case(
@@ -123,21 +112,28 @@ def fvk_case(
         truth="fvk",
         substeps=substeps,
     )
-    e0 = problem.material.prestrain
-    ex, ey = (e0, e0) if prestrain is None else (float(prestrain[0]), float(prestrain[1]))
-    dt = problem.identification.dt
-    final = float(rec.load_factor[-1])
-    pl = rec.load
-    f = rec.model.project(pl)
-    traj = Trajectory(rec.t, rec.z, np.gradient(rec.z, dt, axis=0), rec.load_factor[:-1, None] * f[None], rec.outputs)
+    ex, ey = rec.params.eps0_x, rec.params.eps0_y
+    f = rec.model.project(rec.load)
+    return _case(
+        problem, "FvK", load, rec.load, f, rec.model, rec.t, rec.z, rec.load_factor, rec.outputs, rec.values,
+        noise, seed, nodes, (ex, ey), damping,
+    )  # fmt: skip
+
+
+def _case(problem, kind, load, pl, f, model, t, Z, factor, clean, noisy, noise, seed, nodes, prestrain, damping):
+    """The :class:`NonlinearCase` of a simulated record: trajectory, measurements, scaled load, lift history."""
+    ex, ey = prestrain
+    traj = Trajectory(t, Z, np.gradient(Z, problem.identification.dt, axis=0), factor[:-1, None] * f[None], clean)
+    nx, ny = nodes
     meas = Measurements(
-        t=rec.t,
-        values=rec.values,
+        t=t,
+        values=noisy,
         sensor_names=problem.sensor_names,
         noise_std=None,
-        source=f"FvK truth {load} {100 * noise:g}% seed {seed} {nodes[0]}x{nodes[1]} e0=({ex:g},{ey:g}) d={damping:g}",
+        source=f"{kind} truth {load} {100 * noise:g}% seed {seed} {nx}x{ny} e0=({ex:g},{ey:g}) d={damping:g}",
     )
+    final = float(factor[-1])
     scaled = PressureLoad(pl.name, lambda x, y: final * pl(x, y), pl.description, pl.breaks_x, pl.breaks_y)
     params = {"prestrain_x": ex, "prestrain_y": ey, "damping": damping}
-    case = NonlinearCase(scaled, rec.model, traj, meas, noise, seed, None, params)
-    return dataclasses.replace(case, lift_history=rec.load_factor * case.true_lift / final)
+    case = NonlinearCase(scaled, model, traj, meas, noise, seed, None, params)
+    return dataclasses.replace(case, lift_history=factor * case.true_lift / final)
