@@ -13,6 +13,8 @@ from wingopt.cli import main
 from wingopt.errors import InputError
 from wingopt.problem import PROBLEMS_DIR, load_problem
 
+LINEAR = ("--model", "linear", "--no-model-form")  # input handling is tested, not the membrane model
+
 
 @pytest.fixture
 def outdir(tmp_path):
@@ -50,28 +52,18 @@ CASES = {
         "sensors[4]",
     ),
     "missing CSV column": lambda tmp: (
-        [
-            "identify",
-            "membrane",
-            "--model",
-            "linear",
-            "--no-model-form",
-            "--data",
-            write(tmp / "d.csv", "t,S1,S2,S3\n" + "0,1e-2,1e-2,1e-2\n"),
-        ],
+        ["identify", "membrane", *LINEAR, "--data", write(tmp / "d.csv", "t,S1,S2,S3\n" + "0,1e-2,1e-2,1e-2\n")],
         "S4",
     ),
     "empty CSV": lambda tmp: (
-        ["identify", "membrane", "--model", "linear", "--no-model-form", "--data", write(tmp / "e.csv", "")],
+        ["identify", "membrane", *LINEAR, "--data", write(tmp / "e.csv", "")],
         "empty",
     ),
     "NaN time": lambda tmp: (
         [
             "identify",
             "membrane",
-            "--model",
-            "linear",
-            "--no-model-form",
+            *LINEAR,
             "--data",
             write(tmp / "n.csv", "t,S1,S2,S3,S4\n" + good_csv_rows(5) + "nan,0.01,0.01,0.01,0.01\n"),
         ],
@@ -104,7 +96,7 @@ def test_failure_keeps_earlier_results(tmp_path, capsys):
     out.mkdir()
     (out / "summary.json").write_text(json.dumps({"lift_N": 1.0}))
     bad = write(tmp_path / "short.csv", "t,S1,S2,S3,S4\n0,0.01,0.01,0.01\n")
-    assert main(["identify", "membrane", "--model", "linear", "--no-model-form", "--data", bad, "--out", str(out)]) == 2
+    assert main(["identify", "membrane", *LINEAR, "--data", bad, "--out", str(out)]) == 2
     assert json.loads((out / "summary.json").read_text()) == {"lift_N": 1.0}
 
 

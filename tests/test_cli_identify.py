@@ -10,6 +10,8 @@ from wingopt.cli import main
 from wingopt.problem import PROBLEMS_DIR, load_problem
 from wingopt.workflows.protocols import simulate_case
 
+LINEAR = ("--model", "linear", "--no-model-form")  # input handling is tested, not the membrane model
+
 FAST = ["--window", "100", "--stride", "50", "--modes", "20", "--truth-mesh", "25x13", "--t-end", "0.3"]
 
 
@@ -160,22 +162,7 @@ def _bad_files(tmp_path, record):
 def test_bad_csv_is_one_line_exit_2_and_no_output(record, small_file, tmp_path, capsys, which):
     path, needle = _bad_files(tmp_path, record)[which]
     out = tmp_path / "never"
-    assert (
-        main(
-            [
-                "identify",
-                str(small_file),
-                "--model",
-                "linear",
-                "--no-model-form",
-                "--data",
-                str(path),
-                "--out",
-                str(out),
-            ]
-        )
-        == 2
-    )
+    assert main(["identify", str(small_file), *LINEAR, "--data", str(path), "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert needle in err, err
     assert err.count("\n") == 1
@@ -189,12 +176,7 @@ def test_existing_output_survives_a_failed_run(record, small_file, tmp_path, cap
     (out / "summary.json").write_text("{}")
     bad = tmp_path / "empty.csv"
     bad.write_text("")
-    assert (
-        main(
-            ["identify", str(small_file), "--model", "linear", "--no-model-form", "--data", str(bad), "--out", str(out)]
-        )
-        == 2
-    )
+    assert main(["identify", str(small_file), *LINEAR, "--data", str(bad), "--out", str(out)]) == 2
     assert (out / "summary.json").read_text() == "{}"
 
 
@@ -257,19 +239,7 @@ def test_data_at_another_sample_rate(small_file, tmp_path, capsys):
     data = tmp_path / "dic300.csv"
     write_csv(data, traj.t, y, problem.sensor_names)
     out = tmp_path / "dic"
-    argv = [
-        "identify",
-        str(small_file),
-        "--model",
-        "linear",
-        "--no-model-form",
-        "--data",
-        str(data),
-        "--out",
-        str(out),
-        "--json",
-        "--no-plots",
-    ]
+    argv = ["identify", str(small_file), *LINEAR, "--data", str(data), "--out", str(out), "--json", "--no-plots"]
     assert main(argv + ["--window", "60", "--stride", "20", "--modes", "20", "--model", "linear"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["data"]["dt_s"] == pytest.approx(1 / 300, rel=1e-3)  # times written to 1 us

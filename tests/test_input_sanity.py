@@ -24,6 +24,9 @@ from wingopt.estimation.csv_data import read_measurements
 from wingopt.problem import PROBLEMS_DIR, load_problem
 from wingopt.problem.membrane import StretchSensorSpec
 
+LINEAR = ("--model", "linear", "--no-model-form")  # input handling is tested, not the membrane model
+LINEAR_API = {"model": "linear", "model_form": False}  # the same through the API
+
 ROOT = Path(__file__).resolve().parents[1]
 RECORD = ROOT / "examples" / "data" / "synthetic_tunnel_300Hz.csv"
 SHORT = dict(nodes=(13, 7), truth_nodes=(19, 10), t_end=0.3)
@@ -69,20 +72,7 @@ def test_clean_record_has_an_empty_warnings_list(membrane, tmp_path, capsys):
     out = tmp_path / "run"
     assert (
         main(
-            [
-                "identify",
-                "membrane",
-                "--model",
-                "linear",
-                "--no-model-form",
-                "--data",
-                str(RECORD),
-                "--mesh",
-                "13x7",
-                "--no-plots",
-                "--out",
-                str(out),
-            ]
+            ["identify", "membrane", *LINEAR, "--data", str(RECORD), "--mesh", "13x7", "--no-plots", "--out", str(out)]
         )
         == 0
     )
@@ -120,22 +110,7 @@ def test_percent_stretch_warns_on_the_cli_and_in_the_summary(tmp_path, capsys):
     pct = _rewrite(tmp_path, lambda c: [c[0], *[f"{float(x) * 100:.8g}" if x else x for x in c[1:]]])
     out = tmp_path / "run"
     assert (
-        main(
-            [
-                "identify",
-                "membrane",
-                "--model",
-                "linear",
-                "--no-model-form",
-                "--data",
-                str(pct),
-                "--mesh",
-                "13x7",
-                "--no-plots",
-                "--out",
-                str(out),
-            ]
-        )
+        main(["identify", "membrane", *LINEAR, "--data", str(pct), "--mesh", "13x7", "--no-plots", "--out", str(out)])
         == 0
     )
     err = capsys.readouterr().err
@@ -153,8 +128,7 @@ def test_data_that_do_not_fit_the_model_are_warned(membrane):
         data=np.column_stack([t, s, 0.8 * s, 1.1 * s, 0.9 * s]),
         nodes=(13, 7),
         noise_std=1e-5,
-        model="linear",
-        model_form=False,
+        **LINEAR_API,
     )
     assert any("do not fit the model" in w for w in run.warnings), run.warnings
 
@@ -165,22 +139,7 @@ def test_data_that_do_not_fit_the_model_are_warned(membrane):
 @pytest.mark.parametrize(("scale", "unit"), [(1e3, "ms"), (1e6, "µs"), (1e9, "ns")])
 def test_time_in_ms_us_ns_is_refused_with_a_hint(tmp_path, capsys, scale, unit):
     path = _rewrite(tmp_path, _scale_time(scale))
-    assert (
-        main(
-            [
-                "identify",
-                "membrane",
-                "--model",
-                "linear",
-                "--no-model-form",
-                "--data",
-                str(path),
-                "--out",
-                str(tmp_path / "o"),
-            ]
-        )
-        == 2
-    )
+    assert main(["identify", "membrane", *LINEAR, "--data", str(path), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and f"are the times in {unit}?" in err and "LinAlgError" not in err
 
@@ -188,35 +147,19 @@ def test_time_in_ms_us_ns_is_refused_with_a_hint(tmp_path, capsys, scale, unit):
 def test_time_in_ms_through_the_api_is_an_input_error(record):
     ms = dataclasses.replace(record, t=record.t * 1000)
     with pytest.raises(InputError, match="are the times in ms"):
-        wo.identify("membrane", data=ms, nodes=(13, 7), model="linear", model_form=False)
+        wo.identify("membrane", data=ms, nodes=(13, 7), **LINEAR_API)
     with pytest.raises(InputError, match="faster than 10 MHz"):
         wo.identify(
             "membrane",
             data=dataclasses.replace(record, t=record.t * 1e-6),
             nodes=(13, 7),
-            model="linear",
-            model_form=False,
+            **LINEAR_API,
         )
 
 
 def test_negated_stretch_is_refused(tmp_path, capsys):
     neg = _rewrite(tmp_path, lambda c: [c[0], *[f"{-float(x):.8g}" if x else x for x in c[1:]]])
-    assert (
-        main(
-            [
-                "identify",
-                "membrane",
-                "--model",
-                "linear",
-                "--no-model-form",
-                "--data",
-                str(neg),
-                "--out",
-                str(tmp_path / "o"),
-            ]
-        )
-        == 2
-    )
+    assert main(["identify", "membrane", *LINEAR, "--data", str(neg), "--out", str(tmp_path / "o")]) == 2
     assert "sensor S1: median value -0.00399 < 0" in capsys.readouterr().err.replace("-0.003992", "-0.00399")
 
 
@@ -300,22 +243,7 @@ def test_prestrain_outside_the_physical_range_is_refused(tmp_path, capsys):
 
 
 def test_directory_given_as_a_file_is_reported_as_a_directory(tmp_path, capsys):
-    assert (
-        main(
-            [
-                "identify",
-                "membrane",
-                "--model",
-                "linear",
-                "--no-model-form",
-                "--data",
-                str(tmp_path),
-                "--out",
-                str(tmp_path / "o"),
-            ]
-        )
-        == 2
-    )
+    assert main(["identify", "membrane", *LINEAR, "--data", str(tmp_path), "--out", str(tmp_path / "o")]) == 2
     assert main(["modes", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert err.count("is a directory, expected a CSV file") == 1 and err.count("is a directory, expected a .toml") == 1
@@ -331,58 +259,28 @@ def test_t_end_too_short_names_t_end(membrane, tmp_path, capsys):
 
 
 def test_api_data_as_array_and_measurements_and_problem_by_name(record):
-    by_meas = wo.identify("membrane", data=record, nodes=(13, 7), model="linear", model_form=False)
+    by_meas = wo.identify("membrane", data=record, nodes=(13, 7), **LINEAR_API)
     arr = np.column_stack([record.t, record.values])
-    by_array = wo.identify("membrane", data=arr, nodes=(13, 7), model="linear", model_form=False)
-    by_file = wo.identify("membrane", data=str(RECORD), nodes=(13, 7), model="linear", model_form=False)
+    by_array = wo.identify("membrane", data=arr, nodes=(13, 7), **LINEAR_API)
+    by_file = wo.identify("membrane", data=str(RECORD), nodes=(13, 7), **LINEAR_API)
     assert by_meas.lift == pytest.approx(by_file.lift, rel=1e-12)
     assert by_array.lift == pytest.approx(by_file.lift, rel=1e-12)
     assert abs(by_file.lift - 0.421124) / 0.421124 < 0.02  # the record's true lift (header)
     with pytest.raises(InputError, match=r"array of shape \(5, 3\): expected \(N, 5\)"):
         wo.identify("membrane", data=np.zeros((5, 3)))
     with pytest.raises(InputError, match="got dict: expected a CSV path"):
-        wo.identify("membrane", data={"t": [0, 1]}, model="linear", model_form=False)
+        wo.identify("membrane", data={"t": [0, 1]}, **LINEAR_API)
 
 
 def test_messages_have_plain_numbers_and_sensor_names(tmp_path, capsys):
     path = tmp_path / "short.csv"
     path.write_text("t,S1,S2,S3,S4\n" + "".join(f"{k * 1e-3:.3f},0.01,0.01,0.01,0.01\n" for k in range(12)))
-    assert (
-        main(
-            [
-                "identify",
-                "membrane",
-                "--model",
-                "linear",
-                "--no-model-form",
-                "--data",
-                str(path),
-                "--out",
-                str(tmp_path / "o"),
-            ]
-        )
-        == 2
-    )
+    assert main(["identify", "membrane", *LINEAR, "--data", str(path), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "np.float64" not in err and "12 complete samples" in err
     bad = tmp_path / "dec.csv"
     bad.write_text("t,S1,S2,S3,S4\n0.002,0.01,0.01,0.01,0.01\n0.001,0.01,0.01,0.01,0.01\n")
-    assert (
-        main(
-            [
-                "identify",
-                "membrane",
-                "--model",
-                "linear",
-                "--no-model-form",
-                "--data",
-                str(bad),
-                "--out",
-                str(tmp_path / "o"),
-            ]
-        )
-        == 2
-    )
+    assert main(["identify", "membrane", *LINEAR, "--data", str(bad), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "t = 0.001 after 0.002" in err and "np.float64" not in err
 
@@ -393,9 +291,7 @@ def test_no_runtime_warnings_on_stderr(tmp_path):
     argv = [
         "identify",
         "membrane",
-        "--model",
-        "linear",
-        "--no-model-form",
+        *LINEAR,
         "--data",
         str(pct),
         "--mesh",
@@ -432,5 +328,5 @@ def test_initial_load_nan_or_zero_is_refused(membrane, tmp_path, capsys):
 def test_api_time_message_has_plain_numbers():
     data = np.array([[0.002, 0.01, 0.01, 0.01, 0.01], [0.001, 0.01, 0.01, 0.01, 0.01]])
     with pytest.raises(InputError) as err:
-        wo.identify("membrane", data=data, model="linear", model_form=False)
+        wo.identify("membrane", data=data, **LINEAR_API)
     assert "t[1] = 0.001 after 0.002" in str(err.value) and "np.float64" not in str(err.value)

@@ -22,20 +22,11 @@ from wingopt.cli import main
 from wingopt.errors import OutputError
 from wingopt.results.writer import MARKER, ResultDirectory, check_writable, clean_stale, write_json
 
+LINEAR = ("--model", "linear", "--no-model-form")  # input handling is tested, not the membrane model
+
 ROOT = Path(__file__).resolve().parents[1]
 RECORD = ROOT / "examples" / "data" / "synthetic_tunnel_300Hz.csv"
-FAST = [
-    "identify",
-    "membrane",
-    "--model",
-    "linear",
-    "--no-model-form",
-    "--data",
-    str(RECORD),
-    "--mesh",
-    "13x7",
-    "--no-plots",
-]
+FAST = ["identify", "membrane", *LINEAR, "--data", str(RECORD), "--mesh", "13x7", "--no-plots"]
 
 
 def _leftovers(parent: Path) -> list[str]:
@@ -46,18 +37,7 @@ def test_foreign_directory_is_refused_and_kept(tmp_path, capsys):
     proj = tmp_path / "proj"
     proj.mkdir()
     (proj / "rec.csv").write_text(RECORD.read_text())
-    argv = [
-        "identify",
-        "membrane",
-        "--model",
-        "linear",
-        "--no-model-form",
-        "--data",
-        str(proj / "rec.csv"),
-        "--mesh",
-        "13x7",
-        "--no-plots",
-    ]
+    argv = ["identify", "membrane", *LINEAR, "--data", str(proj / "rec.csv"), "--mesh", "13x7", "--no-plots"]
     assert main([*argv, "--out", str(proj)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and str(proj) in err and "not written by wingopt" in err
