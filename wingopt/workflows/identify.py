@@ -13,6 +13,7 @@ Stretch sensors cannot see the sign of the load: ``initial_load`` (default: the 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -272,10 +273,11 @@ def identify(
     case, report, protocol = None, None, {}
     off_file = truth != "linear" or truth_prestrain is not None or truth_damping != 1.0 or gust is not None
     if load is not None:
-        if truth == "fvk":
-            from wingopt.workflows.realistic_truth import fvk_case
+        if off_file or load == "LE":
+            from wingopt.workflows.realistic_truth import berger_case, fvk_case
 
-            case = fvk_case(
+            simulate = fvk_case if truth == "fvk" else functools.partial(berger_case, nonlinear=truth == "berger")
+            case = simulate(
                 problem,
                 load,
                 noise,
@@ -284,21 +286,6 @@ def identify(
                 truth_damping,
                 gust,
                 nodes=tuple(truth_nodes or problem.nodes),
-                t_end=t_end,
-            )
-        elif off_file or load == "LE":
-            from wingopt.workflows.realistic_truth import berger_case
-
-            case = berger_case(
-                problem,
-                load,
-                noise,
-                seed,
-                truth_prestrain,
-                truth_damping,
-                gust,
-                nodes=tuple(truth_nodes or problem.nodes),
-                nonlinear=truth == "berger",
                 t_end=t_end,
             )
         else:

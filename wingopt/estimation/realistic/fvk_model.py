@@ -26,7 +26,7 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation.realistic.berger_modal import BergerModal, oscillator_step
-from wingopt.estimation.realistic.tangent import _step
+from wingopt.estimation.realistic.tangent import _step, prestress_terms
 from wingopt.membrane import MembraneModel
 from wingopt.membrane.fvk import FvKMembrane
 from wingopt.membrane.fvk_modal import cubic_tensor
@@ -141,17 +141,8 @@ class FvKModal(BergerModal):
         :func:`~wingopt.estimation.realistic.tangent.simulate_tangent`."""
         if not nonlinear:
             return super().simulate_tangent(q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforces, False)
-        mat = self.model.problem.material
-        nu, C, h = mat.poisson_ratio, self.stiffness_c, self.dt / self.substeps
-        kx, ky, m, r = self.kx, self.ky, self.m, self.cubic_modes
-        k0 = C * ((ex + nu * ey) * kx + (ey + nu * ex) * ky)
-        k0x, k0y = C * (kx + nu * ky), C * (ky + nu * kx)
-        visc = mat.viscous / mat.areal_density + mat.kelvin_voigt * k0
-        a = 0.5 * damping * visc
-        e = np.exp(-a * h)
-        dex, dey, dd = dpar
-        dk0 = np.outer(dex, k0x) + np.outer(dey, k0y)
-        da = 0.5 * (np.outer(dd, visc) + damping * mat.kelvin_voigt * dk0)
+        m, r = self.m, self.cubic_modes
+        h, k0, dk0, a, da, e = prestress_terms(self, ex, ey, damping, dpar)
         T, Bd = self.tensor, self.diag_tensor
         N, P = forces.shape[0], dq0.shape[0]
         Q, dQ = np.empty((N + 1, m)), np.empty((N + 1, P, m))

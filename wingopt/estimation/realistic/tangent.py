@@ -62,6 +62,25 @@ def _step(q, v, u, k, a, e, h, dq, dv, du, dk, da):
     return q1, v1, dq1, dv1
 
 
+def prestress_terms(bm, ex, ey, damping, dpar):
+    """The parameter-dependent linear part of a sub-step and its tangents.
+
+    Returns ``h`` (sub-step), the prestress stiffness ``k0`` and its tangent ``dk0`` (P, m), half
+    the damping ``a`` and ``da`` (P, m), and ``e = exp(-a h)``; ``dpar`` is ``(3, P)``, the seeds of
+    ``ex, ey, damping``. Shared by the Berger and the cubic FvK models (same linear part).
+    """
+    mat = bm.model.problem.material
+    nu, C, h = mat.poisson_ratio, bm.stiffness_c, bm.dt / bm.substeps
+    k0 = C * ((ex + nu * ey) * bm.kx + (ey + nu * ex) * bm.ky)
+    k0x, k0y = C * (bm.kx + nu * bm.ky), C * (bm.ky + nu * bm.kx)
+    visc = mat.viscous / mat.areal_density + mat.kelvin_voigt * k0
+    a = 0.5 * damping * visc
+    dex, dey, dd = dpar
+    dk0 = np.outer(dex, k0x) + np.outer(dey, k0y)
+    da = 0.5 * (np.outer(dd, visc) + damping * mat.kelvin_voigt * dk0)
+    return h, k0, dk0, a, da, np.exp(-a * h)
+
+
 def simulate_tangent(bm, q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforces, nonlinear: bool = True):
     """Trajectory ``(N+1, m)`` and its tangents ``(N+1, P, m)`` (all modes dynamic).
 
@@ -74,18 +93,11 @@ def simulate_tangent(bm, q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforce
     dforces : callable ``k -> (P, m)``: tangent of the force held over interval ``k``
     """
     mat = bm.model.problem.material
-    nu, C, h = mat.poisson_ratio, bm.stiffness_c, bm.dt / bm.substeps
+    nu, C = mat.poisson_ratio, bm.stiffness_c
     kx, ky = bm.kx, bm.ky
     on = bm.stretch_gain if nonlinear else 0.0
     ia = 1.0 / (2.0 * bm.area)
-    k0 = C * ((ex + nu * ey) * kx + (ey + nu * ex) * ky)
-    k0x, k0y = C * (kx + nu * ky), C * (ky + nu * kx)
-    visc = mat.viscous / mat.areal_density + mat.kelvin_voigt * k0
-    a = 0.5 * damping * visc
-    e = np.exp(-a * h)
-    dex, dey, dd = dpar
-    dk0 = np.outer(dex, k0x) + np.outer(dey, k0y)
-    da = 0.5 * (np.outer(dd, visc) + damping * mat.kelvin_voigt * dk0)
+    h, k0, dk0, a, da, e = prestress_terms(bm, ex, ey, damping, dpar)
     kxs, kys = on * C * ia * (kx + nu * ky), on * C * ia * (ky + nu * kx)
     N = forces.shape[0]
     P = dq0.shape[0]
