@@ -293,17 +293,7 @@ class Engine:
         }
         by_future = {}
         for rank, task in enumerate(tasks):
-            fut = client.submit(
-                _execute,
-                task.fn,
-                task.key,
-                task.args,
-                *[futures[k] for k in task.shared],
-                key=_dask_key("task", task.key, run),
-                priority=len(tasks) - rank,
-                retries=retries,
-                pure=False,
-            )
+            fut = self._submit(task, futures, _dask_key("task", task.key, run), priority=len(tasks) - rank)
             by_future[fut.key] = (fut, task)
         attempts: dict[str, int] = {}
         try:
@@ -329,6 +319,14 @@ class Engine:
             # Interrupted (or done): nothing left running for this study.
             client.cancel([f for f, _ in by_future.values()] + list(futures.values()))
 
+    def _submit(self, task: SweepTask, futures: dict, key: str, **placement):
+        """Submit one task on the cluster, its shared inputs as futures (``placement``: priority, workers)."""
+        shared = [futures[k] for k in task.shared]
+        return self.client.submit(
+            _execute, task.fn, task.key, task.args, *shared, key=key, retries=self.settings.retries, pure=False,
+            **placement,
+        )  # fmt: skip
+
     def _resubmit_stalled(self, by_future: dict, futures: dict, attempts: dict, run: str) -> Iterator[dict]:
         """Cancel the tasks the workers hold (all pending ones if none) and submit them again elsewhere."""
         client, retries = self.client, self.settings.retries
@@ -349,18 +347,8 @@ class Engine:
             if n > retries:
                 yield _failure(task, TimeoutError(f"no progress for {self.settings.stall_s:g} s, {n} times"))
                 continue
-            new = client.submit(
-                _execute,
-                task.fn,
-                task.key,
-                task.args,
-                *[futures[k] for k in task.shared],
-                key=f"{_dask_key('task', task.key, run)}-again{n}",
-                workers=others,
-                allow_other_workers=True,
-                retries=retries,
-                pure=False,
-            )
+            again = f"{_dask_key('task', task.key, run)}-again{n}"
+            new = self._submit(task, futures, again, workers=others, allow_other_workers=True)
             by_future[new.key] = (new, task)
 
 
