@@ -14,6 +14,7 @@ from pathlib import Path
 
 import cloudpickle
 import pytest
+from threadpoolctl import threadpool_limits
 
 from wingopt.cli import main
 from wingopt.errors import InputError
@@ -62,7 +63,17 @@ def results_only(records):
     return sorted(({k: v for k, v in r.items() if k not in TIMING_FIELDS} for r in records), key=lambda r: r["key"])
 
 
-def test_serial_and_cluster_records_are_identical_and_match_the_direct_computation(spec_file, tmp_path, cluster):
+@pytest.fixture
+def one_blas_thread():
+    """This process computes with one BLAS thread, as the workers do (BLAS_ENV): multithreaded BLAS sums
+    in another order (1e-10 apart) when pytest runs without make test's thread caps."""
+    with threadpool_limits(1):
+        yield
+
+
+def test_serial_and_cluster_records_are_identical_and_match_the_direct_computation(
+    spec_file, tmp_path, cluster, one_blas_thread
+):
     spec = load_spec(spec_file)
     assert len(spec.runs) == 4 and spec.case_fields == ("method",)
     with Engine(EngineSettings(mode="serial", progress=False)) as serial:
