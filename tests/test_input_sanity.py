@@ -120,6 +120,17 @@ def test_percent_stretch_warns_on_the_cli_and_in_the_summary(tmp_path, capsys):
     assert len(units) == 1 and "pre-strain" in units[0]
 
 
+def test_data_that_are_mostly_noise_are_warned(membrane):
+    """The same alternating record with the noise estimated from it: everything fits at 22-30 % "noise"."""
+    t = np.arange(400) * 1e-3
+    s = 0.002 + 0.001 * (np.arange(400) % 2)
+    run = wo.identify("membrane", data=np.column_stack([t, s, 0.8 * s, 1.1 * s, 0.9 * s]), nodes=(13, 7), **LINEAR_API)
+    noisy = [w for w in run.warnings if "mostly noise" in w]
+    assert len(noisy) == 1 and "% of its peak reading" in noisy[0], run.warnings
+    clean = wo.identify("membrane", load="L1", noise=0.05, nodes=(13, 7), truth_nodes=(17, 9), t_end=0.3)
+    assert not any("mostly noise" in w for w in clean.warnings), clean.warnings  # 5 %: the protocol's worst
+
+
 def test_data_that_do_not_fit_the_model_are_warned(membrane):
     t = np.arange(600) * 1e-3
     s = 0.002 + 0.001 * (np.arange(600) % 2)  # alternating every sample: no membrane does that

@@ -8,7 +8,8 @@ Two kinds of checks, both pure functions of arrays and the model:
 * warnings (one-line strings, stored in ``summary.json`` under ``"warnings"`` and printed by the
   command line): sensors that carry the same information (duplicates, a rank-deficient layout),
   sensors bunched in a small part of the wing (the load elsewhere comes from the prior), values
-  that look like percent, and data that do not fit the model (chi-square per datum well above 1).
+  that look like percent, data that do not fit the model (chi-square per datum well above 1), and a
+  noise level that is a large part of the signal (then everything fits).
 
 Thresholds are stated next to each check with the measurement that motivated them.
 """
@@ -35,6 +36,7 @@ __all__ = [
     "layout_warnings",
     "units_warnings",
     "fit_warnings",
+    "noise_warnings",
     "residual_chi2_per_datum",
     "record_checks",
     "fit_checks",
@@ -54,6 +56,12 @@ CHI2_WARN = 4.0
 """Chi-square per datum above which the data do not fit the model. With the noise estimated from the
 data it is 0.8–1.6 on the shipped and simulated records (measured: tunnel record 1.1, L1 1 % 1.0);
 negated or re-timed records give 30 to 2000."""
+
+NOISE_DOMINATED = 0.2
+"""Noise std above this fraction of a sensor's peak reading: the record is mostly noise. The protocol's
+noise is 1–5 % of the peak (the tunnel record ~1 %); a record alternating every sample (no membrane
+does that) is read as 22–30 % "noise", fits any model at that level and gave a lift with a 2–14 %
+band, flagged adequate."""
 
 MAX_STRETCH = 0.5
 """Refused outright: ``s = 0.5`` means surface slopes of 45° on average (same limit as the CSV reader)."""
@@ -249,6 +257,20 @@ def fit_warnings(chi2_per_datum: float | None, where: str = "") -> list[str]:
     ]
 
 
+def noise_warnings(values: np.ndarray, sigma: np.ndarray, names: Sequence[str]) -> list[str]:
+    """Warn when the noise level (given or estimated) is a large part of a sensor's signal."""
+    peak = np.nanmax(np.abs(np.asarray(values, dtype=float)), axis=0)
+    ratio = np.broadcast_to(np.asarray(sigma, dtype=float), peak.shape) / np.where(peak > 0, peak, np.nan)
+    if not np.any(ratio > NOISE_DOMINATED):
+        return []
+    j = int(np.nanargmax(ratio))
+    return [
+        f"sensor {names[j]}: noise std {100 * ratio[j]:.0f} % of its peak reading (expected a few %): the record is "
+        "mostly noise at this level, so any model fits it and the band says little (sample-to-sample jumps, a "
+        "wrong column, another sampling rate?)"
+    ]
+
+
 def record_checks(model, meas, reference_load: float) -> list[str]:
     """Refusals and warnings before a record is identified; returns the warnings."""
     names = meas.sensor_names
@@ -266,12 +288,16 @@ def record_checks(model, meas, reference_load: float) -> list[str]:
 
 
 def fit_checks(model, meas, result, sigma: np.ndarray | None) -> list[str]:
-    """Warnings after the estimate: the residual of the estimated deflection over the second half."""
-    if sigma is None or result.deflection is None or len(result.t) == 0:
+    """Warnings after the estimate: the noise level against the signal, the residual of the estimated
+    deflection over the second half."""
+    if sigma is None:
         return []
+    warnings = noise_warnings(meas.values, sigma, meas.sensor_names)
+    if result.deflection is None or len(result.t) == 0:
+        return warnings
     idx = np.searchsorted(meas.t, result.t)
     idx = np.clip(idx, 0, meas.count - 1)
     half = slice(len(idx) // 2, None)
     pred = model.sensors.outputs(np.asarray(result.deflection)[half])
     chi2 = residual_chi2_per_datum(pred, meas.values[idx[half]], np.asarray(sigma, dtype=float))
-    return fit_warnings(chi2)
+    return warnings + fit_warnings(chi2)
