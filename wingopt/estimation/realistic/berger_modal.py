@@ -280,8 +280,12 @@ class BergerModal:
 
     def outputs(self, Q: np.ndarray) -> np.ndarray:
         """Sensor outputs ``(N, p)`` of real modal displacements ``Q`` ``(N, m)``."""
-        CQ = np.einsum("pij,kj->kpi", self.sensor_matrices, Q)
-        return np.einsum("kpi,ki->kp", CQ, Q)
+        return np.einsum("kpi,ki->kp", self.sensor_products(Q), Q)
+
+    def sensor_products(self, Q: np.ndarray) -> np.ndarray:
+        """``C_p q_k`` ``(N, p, m)`` for modal displacements ``Q`` ``(N, m)`` (one GEMM)."""
+        p, m = self.p, self.m
+        return (Q @ self.sensor_matrices.reshape(p * m, m).T).reshape(Q.shape[0], p, m)
 
     def deflection(self, q: np.ndarray) -> np.ndarray:
         """Deflection coefficients ``Phi q``."""

@@ -13,7 +13,9 @@ secant matrix ``S_ij = B_ijkl q_k q_l``. Its diagonal joins each oscillator's st
 uniform in-plane stress it *is* Berger's tension term), the off-diagonal rest ``R = N - diag(S) q``
 is a force held over the step; both are taken at the mean of the step start and the predicted end
 (predictor-corrector). The forward sensitivities differentiate exactly this integrator
-(:meth:`FvKModal.simulate_tangent`, checked against complex steps).
+(:meth:`FvKModal.simulate_tangent`, checked against complex steps). Real single trajectories and
+the tangent run in compiled loops (:mod:`~wingopt.estimation.realistic.fvk_kernels`, the same
+arithmetic); complex and batched runs use the NumPy loops here.
 """
 
 from __future__ import annotations
@@ -26,7 +28,8 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation.realistic.berger_modal import BergerModal, oscillator_step
-from wingopt.estimation.realistic.tangent import _step, prestress_terms
+from wingopt.estimation.realistic.fvk_kernels import SETTLE_TOL, fvk_tangent, fvk_trajectory, pair_tensor, settled_from
+from wingopt.estimation.realistic.tangent import ForceTangent, _step, prestress_terms
 from wingopt.membrane import MembraneModel
 from wingopt.membrane.fvk import FvKMembrane
 from wingopt.membrane.fvk_modal import cubic_tensor
@@ -50,6 +53,7 @@ class FvKModal(BergerModal):
 
     tensor: np.ndarray | None = None
     diag_tensor: np.ndarray | None = None
+    pair_tensor: np.ndarray | None = None
 
     @classmethod
     def build(
@@ -72,7 +76,8 @@ class FvKModal(BergerModal):
         B = cubic_tensor(fvk, bm.shapes[:, :r]).reshape(r, r, r, r)
         idx = np.arange(r)
         base = {f.name: getattr(bm, f.name) for f in dataclasses.fields(BergerModal)}
-        return cls(**base, tensor=B.reshape(r * r, r * r), diag_tensor=np.ascontiguousarray(B[idx, idx]))
+        T = B.reshape(r * r, r * r)
+        return cls(**base, tensor=T, diag_tensor=np.ascontiguousarray(B[idx, idx]), pair_tensor=pair_tensor(T, r))
 
     @property
     def cubic_modes(self) -> int:
@@ -99,11 +104,13 @@ class FvKModal(BergerModal):
     def simulate(self, q0, v0, forces, ex, ey, damping=1.0, nonlinear: bool = True):
         """Modal displacements ``(N + 1, ..., m)`` at every sample (as :meth:`BergerModal.simulate`;
         ``nonlinear=False``: the linear model, identical to the Berger model's)."""
-        if not nonlinear:
-            return super().simulate(q0, v0, forces, ex, ey, damping, nonlinear=False)
         forces = np.asarray(forces)
         N, m, r = forces.shape[0], self.m, self.cubic_modes
         dtype = np.result_type(q0, v0, forces, ex, ey, damping, float)
+        if dtype == np.float64:
+            return self._simulate_compiled(q0, v0, forces, ex, ey, damping, nonlinear)
+        if not nonlinear:
+            return super().simulate(q0, v0, forces, ex, ey, damping, nonlinear=False)
         q = np.array(q0, dtype=dtype)
         v = np.array(v0, dtype=dtype)
         ex = np.asarray(ex, dtype=dtype)[..., None]
@@ -136,13 +143,51 @@ class FvKModal(BergerModal):
                 Q[k + 1] = q
         return Q
 
+    def _cubic(self, nonlinear: bool) -> tuple[int, np.ndarray, np.ndarray]:
+        """Cubic modes, pair tensor and diagonal tensor of the compiled loops (none: the linear model)."""
+        if nonlinear:
+            return self.cubic_modes, self.pair_tensor, self.diag_tensor
+        return 0, np.zeros((0, 0)), np.zeros((0, 0, 0))
+
+    def _simulate_compiled(self, q0, v0, forces, ex, ey, damping, nonlinear):
+        """:meth:`simulate` for real arguments: each trajectory of the batch by the compiled loop."""
+        N, m = forces.shape[0], self.m
+        shape = np.broadcast_shapes(np.shape(q0)[:-1], np.shape(v0)[:-1], forces.shape[1:-1], np.shape(ex),
+                                    np.shape(ey), np.shape(damping))  # fmt: skip
+        q0, v0 = np.broadcast_to(q0, shape + (m,)), np.broadcast_to(v0, shape + (m,))
+        F = np.broadcast_to(forces, (N,) + shape + (m,))
+        ex, ey, damping = (np.broadcast_to(np.asarray(x, float), shape) for x in (ex, ey, damping))
+        Q = np.empty((N + 1,) + shape + (m,))
+        h = self.dt / self.substeps
+        r, Tc, _ = self._cubic(nonlinear)
+        with np.errstate(over="ignore", invalid="ignore"):  # a diverging trial step gives non-finite costs
+            for i in np.ndindex(shape):
+                _, k0, _, a, _, e = prestress_terms(self, ex[i], ey[i], damping[i], np.zeros((3, 0)))
+                Fi = np.ascontiguousarray(F[(slice(None),) + i])
+                Q[(slice(None),) + i] = fvk_trajectory(
+                    np.array(q0[i], float), np.array(v0[i], float), Fi, k0, a, e, h, self.substeps, r, Tc,
+                    settled_from(Fi), SETTLE_TOL,
+                )  # fmt: skip
+        return Q
+
     def simulate_tangent(self, q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforces, nonlinear: bool = True):
         """Trajectory ``(N+1, m)`` and its exact tangents ``(N+1, P, m)``; arguments as
         :func:`~wingopt.estimation.realistic.tangent.simulate_tangent`."""
+        h, k0, dk0, a, da, e = prestress_terms(self, ex, ey, damping, dpar)
+        if isinstance(dforces, ForceTangent):
+            f = dforces
+            r, Tc, Bd = self._cubic(nonlinear)
+            T = lambda x: np.ascontiguousarray(np.asarray(x, float).T)  # noqa: E731 - mode-major for the kernel
+            Q, dQ = fvk_tangent(
+                np.asarray(q0, float), np.asarray(v0, float), np.ascontiguousarray(forces, float), k0, T(dk0), a,
+                T(da), e, h, self.substeps, r, Tc, Bd, T(dq0), T(dv0), np.asarray(f.amp, float), T(f.base),
+                np.ascontiguousarray(f.hats, float), int(f.g0), np.asarray(f.fc, float),
+                settled_from(forces, f.amp, f.hats), SETTLE_TOL,
+            )  # fmt: skip
+            return Q, dQ.transpose(0, 2, 1)
         if not nonlinear:
             return super().simulate_tangent(q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforces, False)
         m, r = self.m, self.cubic_modes
-        h, k0, dk0, a, da, e = prestress_terms(self, ex, ey, damping, dpar)
         T, Bd = self.tensor, self.diag_tensor
         N, P = forces.shape[0], dq0.shape[0]
         Q, dQ = np.empty((N + 1, m)), np.empty((N + 1, P, m))

@@ -24,6 +24,7 @@ import numpy as np
 from wingopt.errors import InputError
 from wingopt.estimation.realistic.berger_modal import BergerModal
 from wingopt.estimation.realistic.load_model import GustAmplitude, LoadShapes
+from wingopt.estimation.realistic.tangent import ForceTangent
 
 __all__ = ["PARAMETERS", "ParameterPrior", "RecordProblem"]
 
@@ -203,9 +204,9 @@ class RecordProblem:
         else:
             Q = self.trajectory(theta + 1j * _H * np.eye(self.dim))
             Qr, dQ = Q[:, 0].real, Q.imag / _H
-        CQ = np.einsum("pij,kj->kpi", self.model.sensor_matrices, Qr)
+        CQ = self.model.sensor_products(Qr)
         pred = np.einsum("kpi,ki->kp", CQ, Qr)
-        J = -2.0 * np.einsum("kpi,kbi->kpb", CQ, dQ) / self.sigma[None, :, None]
+        J = -2.0 * np.matmul(CQ, dQ.transpose(0, 2, 1)) / self.sigma[None, :, None]  # batched GEMM, not einsum
         return ((self.y - pred) / self.sigma)[self.valid], Rp @ theta, J[self.valid], Rp
 
     def _tangent(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -227,16 +228,10 @@ class RecordProblem:
         fc = c @ self._force_shapes
         forces = amp[:-1, None] * fc[None]
         scaled = self.shapes.prior_std[:, None] * self._force_shapes
-        du = np.zeros((P, m))
-        cs, gs = sl["c"], sl["g"]
-        hats = self.hats
-
-        def dforces(k):
-            du[cs] = amp[k] * scaled
-            if hats is not None:
-                du[gs] = hats[k][:, None] * fc[None]
-            return du
-
+        base = np.zeros((P, m))
+        base[sl["c"]] = scaled
+        hats = np.zeros((amp.size, 0)) if self.hats is None else self.hats
+        dforces = ForceTangent(amp, base, hats, sl["g"].start, fc)
         return self.model.simulate_tangent(
             ph["q0"][0],
             ph["v0"][0],

@@ -56,17 +56,32 @@ def cost(problem, theta) -> tuple[float, float]:
 
 
 def levenberg_marquardt(problem, theta0: np.ndarray, max_iter: int = 40, tol: float = 1e-2) -> Fit:
-    """Minimise ``problem``'s chi-square from ``theta0``."""
+    """Minimise ``problem``'s chi-square from ``theta0``.
+
+    Converged when the undamped Gauss–Newton step would lower the chi-square by less than ``tol``
+    (its Newton decrement ``g^T H^-1 g``: the point is within ``sqrt(tol)`` posterior standard
+    deviations of the minimum of the local model in every direction). The damped step's own
+    predicted decrease is no test: with a large damping it is small far from the minimum.
+    """
     theta = np.array(theta0, dtype=float)
     mu, nu = 1e-3, 2.0
     rd, rp, Jd, Rp = problem.residuals(theta, jacobian=True)
     f = float(rd @ rd + rp @ rp)
     converged = False
     it = 0
-    while it < max_iter:
-        it += 1
+    while True:
         H = Jd.T @ Jd + Rp.T @ Rp
         g = Jd.T @ rd + Rp.T @ rp
+        try:
+            decrement = float(g @ np.linalg.solve(H, g))
+        except np.linalg.LinAlgError:
+            decrement = np.inf
+        if decrement < tol:
+            converged = True
+            break
+        if it >= max_iter:
+            break
+        it += 1
         dH = np.diag(H).copy()
         while True:
             try:
@@ -81,24 +96,24 @@ def levenberg_marquardt(problem, theta0: np.ndarray, max_iter: int = 40, tol: fl
                     "non-finite Levenberg–Marquardt step",
                     "check the data and the noise level, or use --model linear",
                 )
-            if pred < tol:
-                converged = True
-                break
             rd1, rp1 = problem.residuals(theta + step)
             f1 = float(rd1 @ rd1 + rp1 @ rp1)
-            rho = (f - f1) / pred if np.isfinite(f1) else -1.0
+            rho = (f - f1) / pred if np.isfinite(f1) and pred > 0 else -1.0
             if rho > 0:
-                log.debug("LM %d: cost %.6g -> %.6g (predicted %.3g, mu %.2g)", it, f, f1, pred, mu)
+                log.debug(
+                    "LM %d: cost %.6g -> %.6g (predicted %.3g, mu %.2g, decrement %.3g)", it, f, f1, pred, mu, decrement
+                )
                 theta = theta + step
-                mu *= max(1 / 3, 1 - (2 * rho - 1) ** 3)
+                mu *= max(0.1, 1 - (2 * rho - 1) ** 3)
                 nu = 2.0
                 break
             mu *= nu
             nu *= 2.0
             if mu > 1e12:
-                converged = True  # no decrease possible along any damped step: a minimum
                 break
-        if converged:
+        if mu > 1e12:
+            log.debug("LM: no decrease along any damped step (decrement %.3g): stopped", decrement)
+            converged = decrement < 100 * tol  # rounding-limited near a minimum
             break
         rd, rp, Jd, Rp = problem.residuals(theta, jacobian=True)
         f = float(rd @ rd + rp @ rp)

@@ -13,9 +13,29 @@ For ``q1, v1 = step(q, v, u, k, a)`` (exact oscillator with ``a = c/2``, ``zz = 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-__all__ = ["simulate_tangent"]
+__all__ = ["ForceTangent", "simulate_tangent"]
+
+
+@dataclass(frozen=True, eq=False)
+class ForceTangent:
+    """Tangent of the force held over interval ``k``: ``amp[k] * base`` plus, on the rows ``g0 + g``
+    of the gust knots, ``hats[k, g] * fc`` (``(P, m)``; ``hats`` may have no columns)."""
+
+    amp: np.ndarray
+    base: np.ndarray
+    hats: np.ndarray
+    g0: int
+    fc: np.ndarray
+
+    def __call__(self, k: int) -> np.ndarray:
+        du = self.amp[k] * self.base
+        ng = self.hats.shape[1]
+        du[self.g0 : self.g0 + ng] += self.hats[k][:, None] * self.fc[None]
+        return du
 
 
 def _coeffs(k, a, e, h):
@@ -90,7 +110,8 @@ def simulate_tangent(bm, q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforce
     q0, v0 : ``(m,)``; forces : ``(N, m)``; ex, ey, damping : float
     dq0, dv0 : ``(P, m)`` seeds of the initial state
     dpar : ``(3, P)`` seeds of ``ex, ey, damping``
-    dforces : callable ``k -> (P, m)``: tangent of the force held over interval ``k``
+    dforces : :class:`ForceTangent` (or any callable ``k -> (P, m)``): tangent of the force held
+        over interval ``k``
     """
     mat = bm.model.problem.material
     nu, C = mat.poisson_ratio, bm.stiffness_c

@@ -26,6 +26,10 @@ __all__ = ["batch_start", "TOLERANCE"]
 TOLERANCE = 0.15
 """The batch's adequacy tolerance on the chi-square per datum (:mod:`wingopt.estimation.realistic.adequacy`)."""
 
+START_DECREMENT = 0.1
+"""Newton decrement at which the start-up solve stops: within ~0.3 posterior sigma of the optimum of
+the buffered samples, which every later sample's update refines (the batch stops at 0.01)."""
+
 
 def _scan(rp: RecordProblem) -> np.ndarray:
     """The batch's start: the best amplitude along the smoothest shape, both signs (one batched run).
@@ -57,10 +61,10 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
     theta0 = np.zeros(rp.dim)
     theta0[sl["c"]] = est.x[est.ls]  # the provisional filter's load and parameters: a start near the optimum
     theta0[sl["par"]] = est.x[est.ps]
-    fit = levenberg_marquardt(rp, theta0, max_iter)
+    fit = levenberg_marquardt(rp, theta0, max_iter, START_DECREMENT)
     starts = 1
     if fit.data_cost > (1 + TOLERANCE) * rp.n_data:  # not a fit: the batch's start (amplitude scan) too
-        other = levenberg_marquardt(rp, _scan(rp), max_iter)
+        other = levenberg_marquardt(rp, _scan(rp), max_iter, START_DECREMENT)
         starts = 2
         fit = other if other.cost < fit.cost else fit
     theta, Sigma = fit.theta, fit.covariance
