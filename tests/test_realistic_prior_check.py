@@ -26,13 +26,13 @@ def _run(problem_model, load):
 
 def test_an_edge_load_outside_the_prior_is_flagged_refitted_and_covered(problem_model):
     """Measured: with the file's prior L3 came out -23 % with a 1.4 % band (49x25 truth, 1 s); here
-    the conflict test fires (load chi-square 49 > 38), the 10x wider prior wins on evidence, and
-    the band (widened by the prior's leverage on the lift, 0.14 N) covers the truth."""
+    the conflict test fires (load chi-square 49 > 38), a wider prior wins on evidence, and
+    the band (widened by the prior's leverage on the lift) covers the truth."""
     case, res = _run(problem_model, "L3")
     lp = res.info["load_prior"]
     assert lp["conflict"] and lp["load_chi2"] > lp["threshold"] == pytest.approx(37.7, abs=0.1)
-    assert lp["kept"] == "10"
-    assert lp["scales"]["10"]["log_evidence"] > lp["scales"]["1"]["log_evidence"]
+    z = {k: v["log_evidence"] for k, v in lp["scales"].items()}
+    assert lp["kept"] != "1" and z[lp["kept"]] == max(z.values())  # the data chose a wider prior
     assert lp["lift_spread"] > 0.05
     err = res.lift[-1] - case.true_lift
     assert abs(err) < res.lift_std[-1]  # covered

@@ -29,7 +29,7 @@ from wingopt.estimation.realistic.adequacy import assess
 from wingopt.estimation.realistic.berger_modal import BergerModal
 from wingopt.estimation.realistic.fvk_model import FvKModal
 from wingopt.estimation.realistic.load_model import GustAmplitude, LoadShapes
-from wingopt.estimation.realistic.prior_check import WIDEN, load_prior_check
+from wingopt.estimation.realistic.prior_check import load_prior_check
 from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior, RecordProblem
 from wingopt.estimation.realistic.solver import Fit, levenberg_marquardt
 from wingopt.membrane import MembraneModel, bubble
@@ -312,9 +312,8 @@ def _result(rp, fit: Fit, fits, chosen, ad, sigma, noise_source, wall, s, spread
     if prior_info["conflict"]:
         warnings.append(
             f"load outside its prior (chi-square {prior_info['load_chi2']:.0f} over {prior_info['shapes']} shapes > "
-            f"{prior_info['threshold']:.0f}): refitted with a {WIDEN:g}x wider load prior, kept the "
-            f"{'wider' if prior_info['kept'] != '1' else 'file'}'s (evidence); the lift depends on the prior by "
-            f"{prior_info['lift_spread']:.3g} N, added to the band"
+            f"{prior_info['threshold']:.0f}): refitted with wider load priors, kept x{prior_info['kept']} "
+            f"(largest evidence); the lift depends on the prior by {prior_info['lift_spread']:.3g} N, added to the band"
         )
     fvk = isinstance(bm, FvKModal)
     name = f"FvK cubic, {bm.cubic_modes} modes" if fvk else "Berger"
