@@ -40,6 +40,7 @@ from wingopt.estimation.realistic.mhe_check import check_mhe_result  # noqa: E40
 from wingopt.fe import integrate  # noqa: E402
 from wingopt.membrane import MembraneModel, add_noise  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
+from wingopt.workflows.identify import model_form_band  # noqa: E402
 from wingopt.workflows.protocols import relative_l2  # noqa: E402
 from wingopt.workflows.records import Gust, simulate_record  # noqa: E402
 from wingopt.workflows.studies import load_field, run_method  # noqa: E402
@@ -78,8 +79,10 @@ def run(load, truth, pf, damping, noise, seed, estimator, settings, model) -> di
     c0 = time.process_time()
     if estimator == "realistic":
         res = realistic_identify(model, meas, settings)
-    elif estimator == "mhe":
+    elif estimator == "mhe":  # as `wingopt identify --model linear`: the check, and the model-form term if flagged
         res = check_mhe_result(model, meas, run_method("mhe", model, meas))
+        if res.info.get("model_adequate") is False:
+            res = model_form_band(model, meas, res, None)
     else:  # jekf-tuned: the dissertation's filter, lambda from the data (jekf-seed needs the truth)
         res = run_method(estimator, model, meas)
     cpu = time.process_time() - c0
