@@ -66,14 +66,15 @@ def test_prestrain_off_and_damping_x2(factor):
     assert abs(lift_err) < 0.03
     est, std = res.info["parameters"], res.info["parameters_std"]
     # the first mode's tension, Tx kx1 + Ty ky1 ~ (1 + 4 nu) ex + (4 + nu) ey, is what the record fixes:
-    # measured -0.7 % (factor 0.8) and -0.9 % (1.2)
+    # measured -0.8 % (factor 0.8) and -0.8 % (1.2)
     nu = 0.36
     comb = lambda ex, ey: (1 + 4 * nu) * ex + (4 + nu) * ey  # noqa: E731
     assert abs(comb(est["prestrain_x"], est["prestrain_y"]) / comb(*prestrain) - 1) < 0.03
     for k, true in zip(("prestrain_x", "prestrain_y"), prestrain):
-        assert abs(est[k] - true) < 3 * std[k]  # the split is honest (measured within 2.0 sigma) ...
-        if factor == 0.8:
-            assert abs(est[k] / true - 1) < 0.03  # 0.8: -2.9 %, +0.1 %; 1.2: -21 %, +16 %
+        # The split is weakly determined but honest: measured 0.8: -10 %, +2.6 % (0.7, 0.5 sigma);
+        # 1.2: -21 %, +16 % (2.0, 1.8 sigma). (Until the LM stopped on the Newton decrement, 0.8
+        # came out -2.9 %, +0.1 %: a stop short of the minimum along this valley, not information.)
+        assert abs(est[k] - true) < 3 * std[k]
     assert abs(est["damping"] / 2.0 - 1) < 0.03  # measured -0.7 %, -0.1 %
     assert res.info["model_adequate"]
 
