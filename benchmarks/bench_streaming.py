@@ -9,6 +9,9 @@ the membrane is in equilibrium after ~1 s). ``--model nonlinear``: the same with
 (:func:`~wingopt.workflows.realistic_truth.berger_case`: 49x25, 120 modes, 8 sub-steps, L1, 1 %)
 through :class:`~wingopt.estimation.streaming.nonlinear.NonlinearStreamingEstimator`, against the
 batch realistic estimator (:func:`~wingopt.estimation.realistic.realistic_identify`, defaults).
+``--model fvk``: the FvK truth (:func:`~wingopt.workflows.realistic_truth.fvk_case`, 49x25, L1, 1 %)
+through the FvK stream (``NonlinearStreamSettings(membrane_model="fvk")``, the ``--follow`` default),
+against the batch FvK estimator.
 Prints, in one run:
 
 * p50 / p99 / max per-sample CPU time (``time.thread_time``) and wall time as fractions of the
@@ -22,6 +25,7 @@ Usage::
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 nice python benchmarks/bench_streaming.py --seconds 3600
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 nice python benchmarks/bench_streaming.py --model nonlinear --seconds 120
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 nice python benchmarks/bench_streaming.py --model fvk --seconds 600
 
 One thread, one process; on a shared machine the wall time includes preemption (the load average
 is printed with the numbers).
@@ -42,13 +46,13 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from wingopt.estimation.mhe import mhe_identify  # noqa: E402
-from wingopt.estimation.realistic import realistic_identify  # noqa: E402
+from wingopt.estimation.realistic import RealisticSettings, realistic_identify  # noqa: E402
 from wingopt.estimation.streaming import StreamingEstimator, StreamSettings  # noqa: E402
 from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator, NonlinearStreamSettings  # noqa: E402
 from wingopt.membrane import MembraneModel  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
 from wingopt.workflows.protocols import simulate_case  # noqa: E402
-from wingopt.workflows.realistic_truth import berger_case  # noqa: E402
+from wingopt.workflows.realistic_truth import berger_case, fvk_case  # noqa: E402
 
 
 def rss_mb() -> float:
@@ -69,7 +73,7 @@ def stats(x: np.ndarray, period: float) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--model", choices=("linear", "nonlinear"), default="linear", help="estimator and truth")
+    ap.add_argument("--model", choices=("linear", "nonlinear", "fvk"), default="linear", help="estimator and truth")
     ap.add_argument("--tracking-substeps", type=int, default=1, help="nonlinear: sub-steps per sample after start-up")
     ap.add_argument("--seconds", type=float, default=60.0, help="steady data streamed after the 1 s record")
     ap.add_argument("--load", default="L1")
@@ -81,19 +85,27 @@ def main() -> None:
 
     problem = load_problem("membrane")
     model = MembraneModel.from_problem(problem)
-    nonlinear = args.model == "nonlinear"
-    if nonlinear:
+    nonlinear = args.model in ("nonlinear", "fvk")
+    mm = "fvk" if args.model == "fvk" else "berger"
+    if args.model == "fvk":
+        case = fvk_case(problem, args.load, 0.01, args.seed, t_end=1.0)
+    elif nonlinear:
         case = berger_case(problem, args.load, 0.01, args.seed, t_end=1.0)
     else:
         case = simulate_case(problem, args.load, 0.01, args.seed, (49, 25), t_end=1.0)
     meas = dataclasses.replace(case.measurements, noise_std=None)  # the estimators are not told the noise
     dt = float(meas.t[1] - meas.t[0])
     t0 = time.process_time()
-    batch = realistic_identify(model, meas) if nonlinear else mhe_identify(model, meas)
+    batch = (
+        realistic_identify(model, meas, RealisticSettings(membrane_model=mm))
+        if nonlinear
+        else mhe_identify(model, meas)
+    )
     batch_cpu = time.process_time() - t0
 
     if nonlinear:
-        est = NonlinearStreamingEstimator(model, NonlinearStreamSettings(tracking_substeps=args.tracking_substeps))
+        settings = NonlinearStreamSettings(tracking_substeps=args.tracking_substeps, membrane_model=mm)
+        est = NonlinearStreamingEstimator(model, settings)
     else:
         est = StreamingEstimator(model, StreamSettings(relinearize=args.relinearize))
     K0 = meas.count

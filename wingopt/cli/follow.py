@@ -35,8 +35,8 @@ def add_options(parser) -> None:
         "one estimate per sample: CSV on stdout (t,lift_N,lift_std_N,chi2_per_datum,adequate,phase), appended "
         "and flushed to lift.csv in the hidden working directory .OUT.tmp-*, moved to --out with summary.json at "
         "the end; stops at a line '# end', at the end of stdin, after --idle-timeout or on SIGTERM/SIGINT; the "
-        "summary line (or --json) goes to stderr; --model nonlinear streams the Berger membrane (an extended Kalman "
-        "filter, prestrains and damping identified), otherwise the linear MHE",
+        "summary line (or --json) goes to stderr; --model auto or fvk streams the FvK membrane (an extended Kalman "
+        "filter, prestrains and damping identified), nonlinear the Berger membrane, linear the linear MHE",
     )
     g.add_argument("--print-every", type=int, default=1, metavar="K", help="print every K-th estimate (default 1)")
     g.add_argument(

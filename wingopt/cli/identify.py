@@ -105,8 +105,8 @@ def register(sub, common) -> None:
         help="membrane model of --method mhe: fvk = the realistic estimator with the Foppl-von Karman membrane "
         "(prestrains and damping identified, gusts followed, misfit flag; the data choose nonlinear or linear "
         "membrane); nonlinear = the same with the Berger membrane; linear = the seed's linear MHE (unchanged); "
-        "auto (default): fvk on --data and on --truth fvk, nonlinear on --truth berger, linear on the seed's "
-        "simulated linear protocol (docs/estimation_realistic.md)",
+        "auto (default): fvk on --data, --follow and --truth fvk, nonlinear on --truth berger, linear on the "
+        "seed's simulated linear protocol (docs/estimation_realistic.md)",
     )
     p.add_argument(
         "--no-model-form",

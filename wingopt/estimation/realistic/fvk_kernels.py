@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["SETTLE_TOL", "pair_tensor", "settled_from", "fvk_trajectory", "fvk_tangent"]
+__all__ = ["SETTLE_TOL", "pair_tensor", "settled_from", "fvk_trajectory", "fvk_tangent", "fvk_step_tangent"]
 
 
 def pair_tensor(tensor: np.ndarray, r: int) -> np.ndarray:
@@ -243,6 +243,70 @@ def _oscillate_tangent(q, v, u, k, a, e, h, dq, dv, du, dk, da, q1, v1, dq1, dv1
 
 
 @njit(cache=True)
+def _substep_tangent(q, v, dq, dv, u, du, k0, dk0, a, da, e, h, r, Tc, Bd, table, w, qn, vn, dqn, dvn):
+    """One predictor-corrector sub-step of the state and its tangent into ``qn, vn, dqn, dvn``
+    (``w``: the work arrays of :func:`_work`)."""
+    S, k1, R1, k2, R2, uu, km, qp, vp, dk1, dR1, dk2, dR2, du_c, dk_c, dqp, dvp = w
+    m, P = dq.shape
+    # predictor: the cubic modes only (the linear modes' stiffness does not move)
+    _stiff_tangent(q, dq, k0, dk0, r, Tc, Bd, S, k1, R1, dk1, dR1)
+    for j in range(m):
+        uu[j] = u[j] - R1[j]
+    for i in range(r):
+        for p in range(P):
+            du_c[i, p] = du[i, p] - dR1[i, p]
+    _oscillate_tangent(q, v, uu, k1, a, e, h, dq, dv, du, dk1, da, qp, vp, dqp, dvp, r, r, table, dk0, du_c, dk1)
+    # corrector: the mean of the start and predicted-end stiffness and cubic force
+    _stiff_tangent(qp, dqp, k0, dk0, r, Tc, Bd, S, k2, R2, dk2, dR2)
+    for j in range(m):
+        uu[j] = u[j] - 0.5 * (R1[j] + R2[j])
+        km[j] = 0.5 * (k1[j] + k2[j])
+    for i in range(r):
+        for p in range(P):
+            du_c[i, p] = du[i, p] - 0.5 * (dR1[i, p] + dR2[i, p])
+            dk_c[i, p] = 0.5 * (dk1[i, p] + dk2[i, p])
+    _oscillate_tangent(q, v, uu, km, a, e, h, dq, dv, du, dk_c, da, qn, vn, dqn, dvn, m, r, table, dk0, du_c, dk_c)
+
+
+@njit(cache=True)
+def _work(m, P, r):
+    """Work arrays of :func:`_substep_tangent`."""
+    return (
+        np.empty((r, r)), np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m),
+        np.empty(m), np.empty(m), np.empty((r, P)), np.empty((r, P)), np.empty((r, P)), np.empty((r, P)),
+        np.empty((r, P)), np.empty((r, P)), np.empty((m, P)), np.empty((m, P)),
+    )  # fmt: skip
+
+
+@njit(cache=True)
+def _linear_table(k0, a, e, h, r):
+    """Step coefficients of the linear modes (``>= r``), which keep the stiffness ``k0``."""
+    m = k0.size
+    table = np.empty((m - r, 12))
+    for j in range(r, m):
+        _coefficients(k0[j], a[j], e[j], h, table[j - r])
+    return table
+
+
+@njit(cache=True)
+def fvk_step_tangent(q, v, u, du, k0, dk0, a, da, e, h, substeps, r, Tc, Bd, dq, dv):
+    """One sample (``substeps`` sub-steps, force ``u`` held, its tangent ``du`` ``(m, P)``) of the
+    state and its tangent (mode-major ``(m, P)``): ``q1, v1, dq1, dv1`` (the inputs are kept)."""
+    m, P = dq.shape
+    w = _work(m, P, r)
+    table = _linear_table(k0, a, e, h, r)
+    q, v, dq, dv = q.copy(), v.copy(), dq.copy(), dv.copy()
+    qn, vn, dqn, dvn = np.empty(m), np.empty(m), np.empty((m, P)), np.empty((m, P))
+    for _ in range(substeps):
+        _substep_tangent(q, v, dq, dv, u, du, k0, dk0, a, da, e, h, r, Tc, Bd, table, w, qn, vn, dqn, dvn)
+        q, qn = qn, q
+        v, vn = vn, v
+        dq, dqn = dqn, dq
+        dv, dvn = dvn, dv
+    return q, v, dq, dv
+
+
+@njit(cache=True)
 def fvk_tangent(
     q0, v0, forces, k0, dk0, a, da, e, h, substeps, r, Tc, Bd, dq0, dv0, amp, dforce, hats, g0, fc, settle, tol
 ):
@@ -259,15 +323,9 @@ def fvk_tangent(
     dQ = np.empty((N + 1, m, P))
     q, v, dq, dv = q0.copy(), v0.copy(), dq0.copy(), dv0.copy()
     qn, vn, dqn, dvn = np.empty(m), np.empty(m), np.empty((m, P)), np.empty((m, P))
-    qp, vp, dqp, dvp = np.empty(m), np.empty(m), np.empty((m, P)), np.empty((m, P))
-    S = np.empty((r, r))
-    k1, R1, k2, R2, uu, km = np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m)
-    dk1, dR1, dk2, dR2 = np.empty((r, P)), np.empty((r, P)), np.empty((r, P)), np.empty((r, P))
-    du_c, dk_c = np.empty((r, P)), np.empty((r, P))
+    w = _work(m, P, r)
     du = np.empty((m, P))
-    table = np.empty((m - r, 12))  # the linear modes keep k0: their coefficients once
-    for j in range(r, m):
-        _coefficients(k0[j], a[j], e[j], h, table[j - r])
+    table = _linear_table(k0, a, e, h, r)
     ng = hats.shape[1]
     dt = h * substeps
     Q[0], dQ[0] = q, dq
@@ -281,28 +339,7 @@ def fvk_tangent(
             for g in range(ng):
                 duj[g0 + g] += hats[n, g] * fc[j]
         for _ in range(substeps):
-            # predictor: the cubic modes only (the linear modes' stiffness does not move)
-            _stiff_tangent(q, dq, k0, dk0, r, Tc, Bd, S, k1, R1, dk1, dR1)
-            for j in range(m):
-                uu[j] = u[j] - R1[j]
-            for i in range(r):
-                for p in range(P):
-                    du_c[i, p] = du[i, p] - dR1[i, p]
-            _oscillate_tangent(
-                q, v, uu, k1, a, e, h, dq, dv, du, dk1, da, qp, vp, dqp, dvp, r, r, table, dk0, du_c, dk1
-            )
-            # corrector: the mean of the start and predicted-end stiffness and cubic force
-            _stiff_tangent(qp, dqp, k0, dk0, r, Tc, Bd, S, k2, R2, dk2, dR2)
-            for j in range(m):
-                uu[j] = u[j] - 0.5 * (R1[j] + R2[j])
-                km[j] = 0.5 * (k1[j] + k2[j])
-            for i in range(r):
-                for p in range(P):
-                    du_c[i, p] = du[i, p] - 0.5 * (dR1[i, p] + dR2[i, p])
-                    dk_c[i, p] = 0.5 * (dk1[i, p] + dk2[i, p])
-            _oscillate_tangent(
-                q, v, uu, km, a, e, h, dq, dv, du, dk_c, da, qn, vn, dqn, dvn, m, r, table, dk0, du_c, dk_c
-            )
+            _substep_tangent(q, v, dq, dv, u, du, k0, dk0, a, da, e, h, r, Tc, Bd, table, w, qn, vn, dqn, dvn)
             q, qn = qn, q
             v, vn = vn, v
             dq, dqn = dqn, dq

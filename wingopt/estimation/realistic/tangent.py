@@ -82,15 +82,16 @@ def _step(q, v, u, k, a, e, h, dq, dv, du, dk, da):
     return q1, v1, dq1, dv1
 
 
-def prestress_terms(bm, ex, ey, damping, dpar):
+def prestress_terms(bm, ex, ey, damping, dpar, substeps: int | None = None):
     """The parameter-dependent linear part of a sub-step and its tangents.
 
     Returns ``h`` (sub-step), the prestress stiffness ``k0`` and its tangent ``dk0`` (P, m), half
     the damping ``a`` and ``da`` (P, m), and ``e = exp(-a h)``; ``dpar`` is ``(3, P)``, the seeds of
-    ``ex, ey, damping``. Shared by the Berger and the cubic FvK models (same linear part).
+    ``ex, ey, damping``; ``substeps`` per sample (default the model's). Shared by the Berger and the
+    cubic FvK models (same linear part).
     """
     mat = bm.model.problem.material
-    nu, C, h = mat.poisson_ratio, bm.stiffness_c, bm.dt / bm.substeps
+    nu, C, h = mat.poisson_ratio, bm.stiffness_c, bm.dt / (bm.substeps if substeps is None else substeps)
     k0 = C * ((ex + nu * ey) * bm.kx + (ey + nu * ex) * bm.ky)
     k0x, k0y = C * (bm.kx + nu * bm.ky), C * (bm.ky + nu * bm.kx)
     visc = mat.viscous / mat.areal_density + mat.kelvin_voigt * k0

@@ -1,11 +1,13 @@
-"""Streaming identification with the nonlinear (Berger) membrane: an extended Kalman filter.
+"""Streaming identification with the nonlinear (Berger or cubic FvK) membrane: an extended Kalman filter.
 
 :class:`NonlinearStreamingEstimator` has the shape of
 :class:`~wingopt.estimation.streaming.StreamingEstimator` (``push(t, y) -> Estimate``) on the
-realistic estimator's model (:mod:`wingopt.estimation.realistic`): the modal Berger membrane
-(48 modes of the 25x13 mesh, all dynamic, predictor-corrector tension, sub-steps of at most
-0.5 ms), the 15 smoothest load shapes with their prior, the prestrains and the damping factor
-(the problem file's ``free_parameters``) with their priors: the batch problem, one sample at a time.
+realistic estimator's model (:mod:`wingopt.estimation.realistic`): the modal Berger membrane or,
+with ``membrane_model="fvk"``, the cubic modal FvK membrane of the batch default
+(:class:`~wingopt.estimation.streaming.fvk_step.FvKSample`); 48 modes of the 25x13 mesh, all
+dynamic, predictor-corrector tension, sub-steps of at most 0.5 ms; the 15 smoothest load shapes
+with their prior, the prestrains and the damping factor (the problem file's
+``free_parameters``) with their priors: the batch problem, one sample at a time.
 
 Joint state ``x`` (scaled: every prior std is 1): modal displacements and velocities of all modes,
 load-shape coefficients, free parameters. The batch's unknowns ``theta`` are fewer: the initial
@@ -60,9 +62,11 @@ from wingopt.errors import InputError
 from wingopt.estimation.mhe.consistency import SIGNIFICANCE
 from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
 from wingopt.estimation.realistic.berger_modal import BergerModal
+from wingopt.estimation.realistic.fvk_model import FvKModal
 from wingopt.estimation.realistic.load_model import LoadShapes
 from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior
 from wingopt.estimation.streaming.berger_step import BergerSample
+from wingopt.estimation.streaming.fvk_step import FvKSample
 from wingopt.estimation.streaming.nonlinear_start import TOLERANCE, batch_start
 from wingopt.estimation.streaming.running_noise import RunningNoise
 from wingopt.estimation.streaming.types import Estimate, NonlinearStreamSettings, SampleClock
@@ -125,17 +129,25 @@ class NonlinearStreamingEstimator:
     def _build(self, dt: float) -> None:
         s, model = self.settings, self.model
         substeps = max(s.substeps, int(math.ceil(dt / s.substep_s - 1e-9)))
-        bm = BergerModal.build(model, min(s.modes, model.n), dt=dt, substeps=substeps)
+        fvk = s.membrane_model == "fvk"
+        if fvk:
+            bm = FvKModal.build(model, min(s.modes, model.n), dt=dt, substeps=substeps, cubic_modes=s.cubic_modes)
+        else:
+            bm = BergerModal.build(model, min(s.modes, model.n), dt=dt, substeps=substeps)
         m, ns, npar = bm.m, self.shapes.count, len(self.prior.free)
         ms = self.ms = min(s.state_modes, m)
         self.bm, self.m, self.n, self.d = bm, m, 2 * m + ns + npar, 2 * ms + ns + npar
         self.ls, self.ps = slice(2 * m, 2 * m + ns), slice(2 * m + ns, self.n)  # in the state x
         self.lc, self.pc = slice(2 * ms, 2 * ms + ns), slice(2 * ms + ns, self.d)  # in the unknowns theta
         self._forces = (bm.input_matrix @ self.shapes.shapes).T * self.shapes.prior_std[:, None]  # per unknown
-        self.fit_sampler = BergerSample(bm, self._forces, self.lc, self.pc)  # the batch's integrator (start-up)
         ts = max(s.tracking_substeps, int(math.ceil(dt / (2.0 * s.substep_s) - 1e-9)))
-        bt = bm if ts == substeps else BergerModal.build(model, bm.m, dt=dt, substeps=ts)
-        self.sampler = BergerSample(bt, self._forces, self.lc, self.pc)  # the filter's (provisional, tracking)
+        if fvk:  # the batch's integrator (start-up) and the filter's (provisional, tracking)
+            self.fit_sampler = FvKSample(bm, self._forces, self.lc, self.pc)
+            self.sampler = FvKSample(bm, self._forces, self.lc, self.pc, substeps=ts)
+        else:
+            self.fit_sampler = BergerSample(bm, self._forces, self.lc, self.pc)
+            bt = bm if ts == substeps else BergerModal.build(model, bm.m, dt=dt, substeps=ts)
+            self.sampler = BergerSample(bt, self._forces, self.lc, self.pc)
         self._par_ms = np.array([self.prior.mean_std(name) for name in self.prior.free]).reshape(-1, 2)
         self._lift = self.shapes.lift_row * self.shapes.prior_std  # lift per scaled load unknown
 
@@ -220,8 +232,14 @@ class NonlinearStreamingEstimator:
             std[name] = sd * d if name == "damping" else sd
         return {"parameters": out, "parameters_std": std}
 
+    @property
+    def _model_name(self) -> str:
+        if isinstance(self.bm, FvKModal):
+            return f"nonlinear (FvK cubic, {self.bm.cubic_modes} modes), EKF"
+        return "nonlinear (Berger), EKF"
+
     def info(self) -> dict:
-        out = {"phase": self.phase, "samples": self.count, "dt_s": self.dt, "model": "nonlinear (Berger), EKF"}
+        out = {"phase": self.phase, "samples": self.count, "dt_s": self.dt, "model": self._model_name}
         out.update(modes=self.m, load_shapes=self.shapes.count, substeps=self.bm.substeps, **self.startup)
         if self.phase not in ("waiting",):
             out.update(self.parameters(), noise_std=self.sigma.tolist(), noise_source=self.noise_source)

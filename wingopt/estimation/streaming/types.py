@@ -119,6 +119,9 @@ class NonlinearStreamSettings:
         When the noise level is re-estimated and the buffered samples are fitted by the batch (s).
     window_s : float
         Window of the innovation chi-square (s).
+    membrane_model : {"berger", "fvk"}
+        The nonlinear membrane: the Berger model or the cubic modal FvK model of the batch
+        default (``cubic_modes`` of its modes with FvK's cubic stiffness).
     """
 
     modes: int = 48
@@ -134,8 +137,12 @@ class NonlinearStreamSettings:
     min_samples: int = 20
     startup_s: float = 0.3
     window_s: float = 0.1
+    membrane_model: str = "berger"
+    cubic_modes: int = 16
 
     def __post_init__(self) -> None:
+        if self.membrane_model not in ("berger", "fvk"):
+            raise InputError(f"nonlinear streaming membrane_model = {self.membrane_model!r}: expected berger or fvk")
         for name, low in (
             ("modes", 1),
             ("shapes", 1),
@@ -143,6 +150,7 @@ class NonlinearStreamSettings:
             ("substeps", 1),
             ("tracking_substeps", 1),
             ("min_samples", 20),
+            ("cubic_modes", 1),
         ):
             val = getattr(self, name)
             if int(val) != val or val < low:
