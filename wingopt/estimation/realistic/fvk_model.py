@@ -177,10 +177,10 @@ class FvKModal(BergerModal):
         if isinstance(dforces, ForceTangent):
             f = dforces
             r, Tc, Bd = self._cubic(nonlinear)
-            T = lambda x: np.ascontiguousarray(np.asarray(x, float).T)  # noqa: E731 - mode-major for the kernel
+            mm = lambda x: np.ascontiguousarray(np.asarray(x, float).T)  # noqa: E731 - mode-major for the kernel
             Q, dQ = fvk_tangent(
-                np.asarray(q0, float), np.asarray(v0, float), np.ascontiguousarray(forces, float), k0, T(dk0), a,
-                T(da), e, h, self.substeps, r, Tc, Bd, T(dq0), T(dv0), np.asarray(f.amp, float), T(f.base),
+                np.asarray(q0, float), np.asarray(v0, float), np.ascontiguousarray(forces, float), k0, mm(dk0), a,
+                mm(da), e, h, self.substeps, r, Tc, Bd, mm(dq0), mm(dv0), np.asarray(f.amp, float), mm(f.base),
                 np.ascontiguousarray(f.hats, float), int(f.g0), np.asarray(f.fc, float),
                 settled_from(forces, f.amp, f.hats), SETTLE_TOL,
             )  # fmt: skip
