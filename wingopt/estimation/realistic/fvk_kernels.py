@@ -1,9 +1,13 @@
-"""Compiled time loops of the cubic modal FvK model: the trajectory and its exact tangent.
+"""Compiled time loops of the cubic modal FvK model: the trajectory, its exact tangent, one sample.
+
+:func:`fvk_trajectory` and :func:`fvk_tangent` integrate a whole record (the batch estimator);
+:func:`fvk_step_tangent` one sample with the velocity tangents too (the streaming EKF,
+:class:`~wingopt.estimation.streaming.fvk_step.FvKSample`). Tangents are mode-major ``(m, P)``.
 
 The integrator is :class:`~wingopt.estimation.realistic.fvk_model.FvKModal`'s (exact damped
 oscillator per mode for a frozen stiffness, predictor-corrector on the secant stiffness and the
 off-diagonal cubic force), step for step and formula for formula; the NumPy loops there stay the
-reference (complex-step batches, the start-up scan) and the tests hold the two together to
+reference (complex-step batches) and the tests hold the two together to
 rounding. Why compiled: one sample is ~100 small array operations in NumPy, so a 1 s record at
 1 kHz costs ~0.5 s per Jacobian in interpreter overhead alone; here it costs the arithmetic.
 
