@@ -21,9 +21,15 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import stats
+
+if TYPE_CHECKING:
+    from wingopt.estimation.realistic.record_problem import RecordProblem
+    from wingopt.estimation.realistic.solver import Fit
 
 __all__ = ["LEVEL", "SCALES", "load_prior_check"]
 
@@ -45,7 +51,9 @@ def _lift(rp, fit) -> np.ndarray:
     return amp * float(rp.shapes.lift_row @ c)
 
 
-def load_prior_check(rp, fit, refit):
+def load_prior_check(
+    rp: RecordProblem, fit: Fit, refit: Callable[[RecordProblem, np.ndarray], Fit]
+) -> tuple[RecordProblem, Fit, np.ndarray | None, dict]:
     """Test ``fit`` of ``rp`` for a load-prior conflict; on one, refit with a wider prior.
 
     Parameters

@@ -49,7 +49,18 @@ class FvKSample:
         self.load_rows, self.par_rows = load_rows, par_rows
         self._tensors = (fm.cubic_modes, fm.pair_tensor, fm.diag_tensor)
 
-    def step_tangent(self, q, v, u, ex, ey, damping, dQ, dV, dpar):
+    def step_tangent(
+        self,
+        q: np.ndarray,
+        v: np.ndarray,
+        u: np.ndarray,
+        ex: float,
+        ey: float,
+        damping: float,
+        dQ: np.ndarray,
+        dV: np.ndarray,
+        dpar: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """State one sample later and its tangents (arguments as ``BergerSample.step_tangent``:
         ``dQ, dV`` ``(P, m)`` seeds, ``dpar`` ``(3, npar)`` seeds of ``(ex, ey, damping)`` for the
         parameter rows)."""
@@ -61,7 +72,9 @@ class FvKSample:
         q1, v1, dq1, dv1 = self._advance(q, v, u, ex, ey, damping, seeds, du, dQ.T, dV.T)
         return q1, v1, dq1.T, dv1.T
 
-    def step(self, q, v, u, ex, ey, damping):
+    def step(
+        self, q: np.ndarray, v: np.ndarray, u: np.ndarray, ex: float, ey: float, damping: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The state one sample later (no tangent)."""
         none = np.zeros((self.m, 0))
         q1, v1, _, _ = self._advance(q, v, u, ex, ey, damping, np.zeros((3, 0)), none, none, none)
