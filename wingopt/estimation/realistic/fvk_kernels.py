@@ -299,15 +299,23 @@ def fvk_step_tangent(q, v, u, du, k0, dk0, a, da, e, h, substeps, r, Tc, Bd, dq,
     m, P = dq.shape
     w = _work(m, P, r)
     table = _linear_table(k0, a, e, h, r)
-    q, v, dq, dv = q.copy(), v.copy(), dq.copy(), dv.copy()
-    qn, vn, dqn, dvn = np.empty(m), np.empty(m), np.empty((m, P)), np.empty((m, P))
+    state = (q.copy(), v.copy(), dq.copy(), dv.copy(), np.empty(m), np.empty(m), np.empty((m, P)), np.empty((m, P)))
+    q, v, dq, dv, _, _, _, _ = _sample(state, u, du, k0, dk0, a, da, e, h, substeps, r, Tc, Bd, table, w)
+    return q, v, dq, dv
+
+
+@njit(cache=True)
+def _sample(state, u, du, k0, dk0, a, da, e, h, substeps, r, Tc, Bd, table, w):
+    """``substeps`` sub-steps of ``state = (q, v, dq, dv, qn, vn, dqn, dvn)`` (the last four: spare
+    buffers); returns the state with the result first (buffers swapped, not copied)."""
+    q, v, dq, dv, qn, vn, dqn, dvn = state
     for _ in range(substeps):
         _substep_tangent(q, v, dq, dv, u, du, k0, dk0, a, da, e, h, r, Tc, Bd, table, w, qn, vn, dqn, dvn)
         q, qn = qn, q
         v, vn = vn, v
         dq, dqn = dqn, dq
         dv, dvn = dvn, dv
-    return q, v, dq, dv
+    return q, v, dq, dv, qn, vn, dqn, dvn
 
 
 @njit(cache=True)
@@ -325,14 +333,13 @@ def fvk_tangent(
     P = dq0.shape[1]
     Q = np.empty((N + 1, m))
     dQ = np.empty((N + 1, m, P))
-    q, v, dq, dv = q0.copy(), v0.copy(), dq0.copy(), dv0.copy()
-    qn, vn, dqn, dvn = np.empty(m), np.empty(m), np.empty((m, P)), np.empty((m, P))
+    state = (q0.copy(), v0.copy(), dq0.copy(), dv0.copy(), np.empty(m), np.empty(m), np.empty((m, P)), np.empty((m, P)))
     w = _work(m, P, r)
     du = np.empty((m, P))
     table = _linear_table(k0, a, e, h, r)
     ng = hats.shape[1]
     dt = h * substeps
-    Q[0], dQ[0] = q, dq
+    Q[0], dQ[0] = q0, dq0
     for n in range(N):
         u = forces[n]
         an = amp[n]
@@ -342,12 +349,8 @@ def fvk_tangent(
                 duj[p] = an * dfj[p]
             for g in range(ng):
                 duj[g0 + g] += hats[n, g] * fc[j]
-        for _ in range(substeps):
-            _substep_tangent(q, v, dq, dv, u, du, k0, dk0, a, da, e, h, r, Tc, Bd, table, w, qn, vn, dqn, dvn)
-            q, qn = qn, q
-            v, vn = vn, v
-            dq, dqn = dqn, dq
-            dv, dvn = dvn, dv
+        state = _sample(state, u, du, k0, dk0, a, da, e, h, substeps, r, Tc, Bd, table, w)
+        q, v, dq, dv = state[0], state[1], state[2], state[3]
         Q[n + 1] = q
         dQ[n + 1] = dq
         if n >= settle and _converged(Q[n + 1], Q[n], v * dt, tol) and _converged(dQ[n + 1], dQ[n], dv * dt, tol):
