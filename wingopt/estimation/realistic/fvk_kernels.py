@@ -185,7 +185,7 @@ def _stiff_tangent(q, dq, k0, dk0, r, Tc, Bd, S, kk, R, dk, dR):
 
 @njit(cache=True)
 def _coefficients(k, a, e, h, out):
-    """The step coefficients and their partials w.r.t. ``k`` and ``a`` (``tangent._coeffs``) into ``out`` (12,)."""
+    """The step coefficients and their partials w.r.t. ``k`` and ``a`` (``tangent.step_gains``) into ``out`` (12,)."""
     hh = h * h
     zz = (k - a * a) * hh
     CZ, SZ = _cs(zz)

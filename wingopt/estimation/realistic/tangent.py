@@ -38,39 +38,46 @@ class ForceTangent:
         return du
 
 
-def _coeffs(k, a, e, h):
-    """Step coefficients and their partials w.r.t. ``k`` and ``a`` (all ``(m,)``)."""
+def step_gains(k, a, e, h, velocity: bool = True):
+    """Coefficients of one exact oscillator step and their partials w.r.t. ``k`` and ``a`` (all
+    ``(m,)``): ``A, es, Ak, esk, Aa, esa`` of the displacement and, with ``velocity``, ``Cq, Dk,
+    Cqk, Dkk, Cqa, Dka`` of the velocity (the predictor needs the displacement's only). Shared by
+    the record tangent and the streaming one-sample tangent
+    (:class:`~wingopt.estimation.streaming.berger_step.BergerSample`)."""
     zz = (k - a * a) * (h * h)
-    pos = zz > 0
-    r = np.sqrt(np.abs(zz))
-    CZ = np.where(pos, np.cos(r), np.cosh(r))
-    SZ = np.where(pos, np.sin(r), np.sinh(r)) / r
+    if zz.min() > 0:  # all modes under-damped (the usual case): no branch to select
+        r = np.sqrt(zz)
+        CZ, SZ = np.cos(r), np.sin(r) / r
+    else:
+        pos = zz > 0
+        r = np.sqrt(np.abs(zz))
+        CZ = np.where(pos, np.cos(r), np.cosh(r))
+        SZ = np.where(pos, np.sin(r), np.sinh(r)) / r
     s = SZ * h
     es = e * s
     A = e * CZ + a * es
-    Cq = e * CZ - a * es
-    Dk = k * es
     dSZ = (CZ - SZ) / (2 * zz)
     # partials w.r.t. k (zz_k = h^2)
     CZk = -0.5 * SZ * h * h
     esk = e * h * dSZ * h * h
     Ak = e * CZk + a * esk
-    Cqk = e * CZk - a * esk
-    Dkk = es + k * esk
     # partials w.r.t. a (zz_a = -2 a h^2, e_a = -h e)
     za = -2 * a * h * h
     ea = -h * e
     CZa = -0.5 * SZ * za
     esa = ea * s + e * h * dSZ * za
     Aa = ea * CZ + e * CZa + es + a * esa
+    if not velocity:
+        return A, es, Ak, esk, Aa, esa
+    Cq = e * CZ - a * es
+    Cqk = e * CZk - a * esk
     Cqa = ea * CZ + e * CZa - es - a * esa
-    Dka = k * esa
-    return A, es, Cq, Dk, Ak, esk, Cqk, Dkk, Aa, esa, Cqa, Dka
+    return A, es, Ak, esk, Aa, esa, Cq, k * es, Cqk, es + k * esk, Cqa, k * esa
 
 
 def _step(q, v, u, k, a, e, h, dq, dv, du, dk, da):
     """One exact oscillator step and its tangent for directions ``(P, m)``."""
-    A, B, Cq, Dk, Ak, Bk, Cqk, Dkk, Aa, Ba, Cqa, Dka = _coeffs(k, a, e, h)
+    A, B, Ak, Bk, Aa, Ba, Cq, Dk, Cqk, Dkk, Cqa, Dka = step_gains(k, a, e, h)
     qe = u / k
     x = q - qe
     q1 = qe + A * x + B * v

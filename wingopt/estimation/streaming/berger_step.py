@@ -23,37 +23,9 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation.realistic.berger_modal import BergerModal, oscillator_step
+from wingopt.estimation.realistic.tangent import step_gains
 
 __all__ = ["BergerSample"]
-
-
-def _gains(k, a, e, h, velocity=True):
-    """Per-mode coefficients of one exact oscillator step and their partials w.r.t. ``k`` and ``a``
-    (``velocity=False``: the displacement's only, for the predictor)."""
-    zz = (k - a * a) * (h * h)
-    if zz.min() > 0:  # all modes under-damped (the usual case): no branch to select
-        r = np.sqrt(zz)
-        CZ, SZ = np.cos(r), np.sin(r) / r
-    else:
-        pos = zz > 0
-        r = np.sqrt(np.abs(zz))
-        CZ = np.where(pos, np.cos(r), np.cosh(r))
-        SZ = np.where(pos, np.sin(r), np.sinh(r)) / r
-    eh = e * h
-    es = eh * SZ
-    eCZ = e * CZ
-    A = eCZ + a * es
-    esk = eh * h * h * (CZ - SZ) / (2 * zz)  # d(e s)/dk, zz_k = h^2
-    eCZk = -0.5 * eh * h * SZ
-    Ak = eCZk + a * esk
-    za = -2 * a * h * h  # zz_a; e_a = -h e
-    esa = -h * es + esk * za / (h * h)
-    eCZa = -h * eCZ - 0.5 * e * SZ * za
-    Aa = eCZa + es + a * esa
-    if not velocity:
-        return A, es, Ak, esk, Aa, esa
-    Cq = eCZ - a * es
-    return A, es, Ak, esk, Aa, esa, Cq, k * es, eCZk - a * esk, es + k * esk, eCZa - es - a * esa, k * esa
 
 
 class BergerSample:
@@ -146,7 +118,7 @@ class BergerSample:
             return k, dK
 
         def stage(q, v, k, dQ, dV, dK, velocity):
-            g = _gains(k, a, e, h, velocity)
+            g = step_gains(k, a, e, h, velocity)
             A, B, Ak, Bk, Aa, Ba = g[:6]
             qe = u / k
             x = q - qe
