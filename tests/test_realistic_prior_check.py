@@ -1,7 +1,8 @@
 """Load-prior conflict of the realistic estimator (``prior_check``): a load outside the smoothness
 prior (L3, largest along an edge) is detected, refitted with a wider prior chosen by the evidence,
-and its band covers the truth; a load inside the prior is left alone. Truth: the FvK membrane on
-33x17 (the estimator's mesh is 25x13), 0.5 s of the seed's protocol, 1 % noise."""
+and its band covers the truth; a load inside the prior is left alone; a fit cut short by the
+iteration cap says so. Truth: the FvK membrane on 33x17 (the estimator's mesh is 25x13), 0.5 s of
+the seed's protocol, 1 % noise."""
 
 import numpy as np
 import pytest
@@ -49,3 +50,14 @@ def test_a_load_inside_the_prior_is_left_alone(problem_model):
     assert res.lift[-1] == pytest.approx(case.true_lift, rel=0.03)
     assert res.lift_std[-1] < 0.03 * case.true_lift
     assert np.all(np.isfinite(res.lift_std))
+
+
+def test_a_fit_stopped_by_the_iteration_cap_says_so(problem_model):
+    """A Levenberg-Marquardt run cut short is reported (converged False and a warning), never silent."""
+    problem, model = problem_model
+    case = fvk_case(problem, "L1", 0.01, 0, nodes=(33, 17), t_end=0.5)
+    capped = realistic_identify(model, case.measurements, RealisticSettings(membrane_model="fvk", max_iter=1))
+    assert capped.info["converged"] is False
+    assert any("did not converge in 1 Levenberg-Marquardt" in w for w in capped.info["warnings"])
+    _, full = _run(problem_model, "L1")
+    assert full.info["converged"] and not any("did not converge" in w for w in full.info["warnings"])

@@ -309,6 +309,11 @@ def _result(rp, fit: Fit, fits, chosen, ad, sigma, noise_source, wall, s, spread
         )
         if ad.chi2_per_datum > 4.0:
             warnings.append("cannot identify this record with this model: the data contradict it")
+    if not fit.converged:
+        warnings.append(
+            f"the fit did not converge in {fit.iterations} Levenberg-Marquardt iterations: the estimate and its "
+            "band are not those of the optimum (a record this model explains poorly, or max_iter too small)"
+        )
     if prior_info["conflict"]:
         warnings.append(
             f"load outside its prior (chi-square {prior_info['load_chi2']:.0f} over {prior_info['shapes']} shapes > "
