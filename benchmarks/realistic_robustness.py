@@ -3,7 +3,7 @@
 Each case is a Föppl–von Kármán record (49x25 truth, the problem's four sensors) that departs from
 the seed protocol in one way the estimator is not told about: noise, load level and sign, a load the
 smooth load shapes cannot hold, unequal prestrain with heavy damping, a late gust, another sample
-rate, a longer record, no initial bubble. The record goes through
+rate, a longer record, no initial bubble, a record that starts with the wing already loaded. The record goes through
 :func:`wingopt.workflows.identify.identify` exactly as a measured CSV would (``data=`` an array,
 noise estimated from the data, every default). One JSON line per case: lift error relative to the
 lift, the reported 1-sigma band, the error in bands, whether the band covers, the adequacy flag and
@@ -57,14 +57,18 @@ def cases(problem) -> dict:
         "500Hz": dict(load="L1", dt=2e-3),
         "2s": dict(load="L1", t_end=2.0),
         "no-bubble": dict(load="L1", bubble_peak=0.0),
+        "steady-start": dict(load="L1", skip_s=0.5),
     }
 
 
 def run(name: str, spec: dict, problem, seed: int) -> dict:
     spec = dict(spec)
     noise = spec.pop("noise", 0.01)
-    rec = simulate_record(problem, noise=noise, seed=seed, **spec)
-    data = np.column_stack([rec.t, rec.values])
+    skip = spec.pop("skip_s", 0.0)  # the record starts this late: the wing already loaded, no transient
+    t_end = spec.pop("t_end", 1.0) + skip
+    rec = simulate_record(problem, noise=noise, seed=seed, t_end=t_end, **spec)
+    k = int(np.searchsorted(rec.t, skip - 1e-12))
+    data = np.column_stack([rec.t[k:] - rec.t[k], rec.values[k:]])
     c0 = time.process_time()
     out = identify(problem, data=data)
     cpu = time.process_time() - c0
