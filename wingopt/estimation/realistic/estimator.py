@@ -27,7 +27,7 @@ from wingopt.estimation.data import IdentificationResult, Measurements
 from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
 from wingopt.estimation.realistic.adequacy import assess
 from wingopt.estimation.realistic.berger_modal import BergerModal
-from wingopt.estimation.realistic.fvk_model import FvKModal
+from wingopt.estimation.realistic.fvk_model import PRESTRAIN_MODEL_FORM_REL, FvKModal, prestrain_std_with_model_form
 from wingopt.estimation.realistic.load_model import GustAmplitude, LoadShapes
 from wingopt.estimation.realistic.prior_check import load_prior_check
 from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior, RecordProblem
@@ -297,10 +297,13 @@ def _result(rp, fit: Fit, fits, chosen, ad, sigma, noise_source, wall, s, spread
     for name in PARAMETERS:
         est[name] = float(np.real(params[name][0]))
         std[name] = 0.0
+    fvk = isinstance(bm, FvKModal)
     for i, name in enumerate(rp.prior.free):
         j = rp.slices["par"].start + i
         sd = rp.prior.mean_std(name)[1] * np.sqrt(cov[j, j])
         std[name] = float(sd * est[name]) if name == "damping" else float(sd)
+        if fvk and rp.nonlinear:
+            std[name] = prestrain_std_with_model_form(name, est[name], std[name])
     warnings = []
     if not ad.adequate:
         warnings.append(
@@ -320,7 +323,6 @@ def _result(rp, fit: Fit, fits, chosen, ad, sigma, noise_source, wall, s, spread
             f"{prior_info['threshold']:.0f}): refitted with wider load priors, kept x{prior_info['kept']} "
             f"(largest evidence); the lift depends on the prior by {prior_info['lift_spread']:.3g} N, added to the band"
         )
-    fvk = isinstance(bm, FvKModal)
     name = f"FvK cubic, {bm.cubic_modes} modes" if fvk else "Berger"
     info = {
         "backend": f"realistic (modal {name}, exact forward-sensitivity Jacobian, Levenberg-Marquardt)",
@@ -334,6 +336,7 @@ def _result(rp, fit: Fit, fits, chosen, ad, sigma, noise_source, wall, s, spread
         "noise_source": noise_source,
         "parameters": est,
         "parameters_std": std,
+        "parameters_model_form_rel": {"prestrain": PRESTRAIN_MODEL_FORM_REL} if fvk and rp.nonlinear else {},
         "free_parameters": list(rp.prior.free),
         "prior": {"prestrain_rel": rp.prior.prestrain_rel, "damping_rel": rp.prior.damping_rel},
         "fits": {k: {"chi2": f.data_cost, "prior": f.prior_cost, "iterations": f.iterations} for k, f in fits.items()},

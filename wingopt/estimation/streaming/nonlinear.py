@@ -62,7 +62,7 @@ from wingopt.errors import InputError
 from wingopt.estimation.mhe.consistency import SIGNIFICANCE
 from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
 from wingopt.estimation.realistic.berger_modal import BergerModal
-from wingopt.estimation.realistic.fvk_model import FvKModal
+from wingopt.estimation.realistic.fvk_model import FvKModal, prestrain_std_with_model_form
 from wingopt.estimation.realistic.load_model import LoadShapes
 from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior
 from wingopt.estimation.streaming.berger_step import BergerSample
@@ -230,6 +230,8 @@ class NonlinearStreamingEstimator:
             j = self.pc.start + i
             sd = self._par_ms[i, 1] * math.sqrt(max(self.Sigma[j, j], 0.0))
             std[name] = sd * d if name == "damping" else sd
+            if isinstance(self.bm, FvKModal):
+                std[name] = prestrain_std_with_model_form(name, out[name], std[name])
         return {"parameters": out, "parameters_std": std}
 
     @property
