@@ -12,6 +12,7 @@ adequate without a warning (a confident wrong answer). ::
 
     nice python benchmarks/realistic_robustness.py            # all cases, about 5 min CPU
     nice python benchmarks/realistic_robustness.py --cases suction,bump
+    nice python benchmarks/realistic_robustness.py --cases steady-start --seed 1 --max-iter 200
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
+from wingopt.estimation.realistic import RealisticSettings  # noqa: E402
 from wingopt.membrane.loads import PressureLoad  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
 from wingopt.workflows.identify import identify  # noqa: E402
@@ -61,7 +63,7 @@ def cases(problem) -> dict:
     }
 
 
-def run(name: str, spec: dict, problem, seed: int) -> dict:
+def run(name: str, spec: dict, problem, seed: int, max_iter: int | None = None) -> dict:
     spec = dict(spec)
     noise = spec.pop("noise", 0.01)
     skip = spec.pop("skip_s", 0.0)  # the record starts this late: the wing already loaded, no transient
@@ -70,7 +72,8 @@ def run(name: str, spec: dict, problem, seed: int) -> dict:
     k = int(np.searchsorted(rec.t, skip - 1e-12))
     data = np.column_stack([rec.t[k:] - rec.t[k], rec.values[k:]])
     c0 = time.process_time()
-    out = identify(problem, data=data)
+    settings = None if max_iter is None else RealisticSettings(max_iter=max_iter)
+    out = identify(problem, data=data, realistic_settings=settings)
     cpu = time.process_time() - c0
     res = out.result
     lt = float(rec.lift[-1])
@@ -101,13 +104,14 @@ def main(argv=None) -> None:
     all_cases = cases(problem)
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cases", default=",".join(all_cases), help="comma-separated: " + ", ".join(all_cases))
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0, help="noise seed")
+    ap.add_argument("--max-iter", type=int, default=None, help="Levenberg-Marquardt cap (default: the estimator's, 40)")
     a = ap.parse_args(argv)
     bad = 0
     for name in a.cases.split(","):
         if name not in all_cases:
             raise SystemExit(f"--cases: {name!r} is not one of {', '.join(all_cases)}")
-        row = run(name, all_cases[name], problem, a.seed)
+        row = run(name, all_cases[name], problem, a.seed, a.max_iter)
         bad += row["confident_wrong"]
         print(json.dumps(row), flush=True)
     print(json.dumps({"cases": len(a.cases.split(",")), "confident_wrong": bad}))

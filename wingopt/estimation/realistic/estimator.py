@@ -9,7 +9,10 @@ Levenberg–Marquardt with exact Jacobians (:mod:`.record_problem`, :mod:`.solve
 3. ``load_model="auto"``: if the constant-load fit does not fit the data, the gust amplitude is
    added and kept when it lowers the chi-square by more than twice the unknowns it adds;
 4. adequacy (:mod:`.adequacy`): chi-square per datum and per segment, the band widened by the
-   misfit, ``model_adequate`` and warnings in ``info``. Nothing is dropped.
+   misfit, ``model_adequate`` and warnings in ``info``. Nothing is dropped;
+5. a load far outside its smoothness prior is refitted with wider priors (:mod:`.prior_check`);
+6. a record that holds little on the tension (no transient) has its lift band checked by the
+   lift's profile likelihood (:mod:`.tension_profile`).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ from wingopt.estimation.realistic.load_model import GustAmplitude, LoadShapes
 from wingopt.estimation.realistic.prior_check import load_prior_check
 from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior, RecordProblem
 from wingopt.estimation.realistic.solver import Fit, levenberg_marquardt
+from wingopt.estimation.realistic.tension_profile import tension_profile
 from wingopt.membrane import MembraneModel, bubble
 
 __all__ = ["RealisticSettings", "realistic_identify", "LOAD_MODELS", "MEMBRANE_MODELS"]
@@ -257,7 +261,25 @@ def realistic_identify(
         c, amp = rp.load_history(fit.theta)
     res = _result(rp, fit, fits, chosen, ad, sigma, noise_source, time.perf_counter() - t0, s, spread, prior_info)
     res.info["membrane_selection"] = selection
-    return res
+    return _with_tension_profile(res, rp, fit, ad, s)
+
+
+def _with_tension_profile(res: IdentificationResult, rp: RecordProblem, fit: Fit, ad, s) -> IdentificationResult:
+    """Check the band by the lift's profile when the record holds little on the tension."""
+    band = float(res.lift_std[-1])
+    wide, info = tension_profile(rp, fit, fit.covariance * ad.inflation**2, band, lambda r, th: _fit(r, th, s))
+    res.info["tension_profile"] = info
+    if not info["computed"] or wide <= 1.05 * band:
+        return res
+    msg = (
+        f"the record holds little on the tension (mean prestrain sigma {info['scale_std']:.0%}, "
+        f"{info['ratio']:.0%} of the prior's: no transient?) and the lift scales with it: the lift's profile "
+        f"rises less than the band says (chi-square {min(info['cost_rises']):.2f} at one band); band widened "
+        f"x{info['widening']:.2f}"
+    )
+    res.info["warnings"].append(msg)
+    log.warning("%s", msg)
+    return dataclasses.replace(res, lift_std=res.lift_std * (wide / band))
 
 
 def _fits_data(t: np.ndarray, rp: RecordProblem, fit: Fit, s: RealisticSettings) -> bool:

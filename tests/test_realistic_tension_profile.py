@@ -1,0 +1,51 @@
+"""The lift's profile check of the realistic estimator (``tension_profile``): a record without a
+transient (the wing already loaded when the recording starts) holds little on the tension, and its
+band is checked by the lift's profile likelihood; a bubble-start record is left to its Laplace band.
+Truth: the FvK membrane on 33x17 (the estimator's mesh is 25x13), L1, 1 % noise."""
+
+import numpy as np
+import pytest
+
+from wingopt.estimation.data import Measurements
+from wingopt.estimation.realistic import RealisticSettings, realistic_identify
+from wingopt.estimation.realistic.tension_profile import MAX_WIDENING, TRIGGER
+from wingopt.membrane import MembraneModel
+from wingopt.problem import load_problem
+from wingopt.workflows.records import simulate_record
+
+
+@pytest.fixture(scope="module")
+def setup():
+    problem = load_problem("membrane")
+    model = MembraneModel.from_problem(problem)
+    rec = simulate_record(problem, "L1", t_end=1.0, nodes=(33, 17), noise=0.01, seed=0)
+    return model, rec
+
+
+def test_a_bubble_start_record_keeps_its_laplace_band(setup):
+    model, rec = setup
+    k = int(np.searchsorted(rec.t, 0.5))
+    meas = Measurements(rec.t[:k], rec.values[:k], rec.sensor_names, None, "bubble start")
+    res = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk"))
+    tp = res.info["tension_profile"]
+    assert not tp["computed"] and tp["ratio"] < TRIGGER / 2  # the ringing fixes the tension
+    assert not any("tension" in w for w in res.info["warnings"])
+
+
+def test_a_record_without_a_transient_has_its_band_checked_by_the_lifts_profile(setup):
+    """The last 0.5 s of the record (the transient over): the tension is nearly the prior's, the
+    lift is refitted held at both ends of its band, and the band is the profile's (never narrower)."""
+    model, rec = setup
+    k = int(np.searchsorted(rec.t, 0.5))
+    meas = Measurements(rec.t[k:] - rec.t[k], rec.values[k:], rec.sensor_names, None, "steady")
+    res = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk", max_iter=200))
+    tp = res.info["tension_profile"]
+    assert res.info["converged"] and tp["ratio"] > TRIGGER and tp["computed"]
+    lift = float(res.lift[-1])
+    band = float(res.lift_std[-1]) / tp["widening"]  # the Laplace band
+    # the refits hold the lift exactly at the band's ends, and cost more than the optimum
+    assert tp["lifts_N"] == pytest.approx([lift - band, lift + band], rel=1e-9)
+    assert all(0 < r < 3 for r in tp["cost_rises"])
+    expect = min(max(1 / np.sqrt(min(tp["cost_rises"])), 1.0), MAX_WIDENING)
+    assert tp["widening"] == pytest.approx(expect)
+    assert abs(lift - rec.lift[-1]) <= 2 * res.lift_std[-1]
