@@ -20,7 +20,15 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["SETTLE_TOL", "pair_tensor", "settled_from", "fvk_trajectory", "fvk_tangent", "fvk_step_tangent"]
+__all__ = [
+    "SETTLE_TOL",
+    "SETTLE_TOL_TANGENT",
+    "pair_tensor",
+    "settled_from",
+    "fvk_trajectory",
+    "fvk_tangent",
+    "fvk_step_tangent",
+]
 
 
 def pair_tensor(tensor: np.ndarray, r: int) -> np.ndarray:
@@ -105,6 +113,11 @@ SETTLE_TOL = 1e-11
 of the record is its last state (the modes decay geometrically, so the change still to come is at
 most ~30x the last one at the slowest decay of the membrane, 30 ms)."""
 
+SETTLE_TOL_TANGENT = 1e-7
+"""The same for the tangents: a Jacobian needs far fewer digits than the residuals (an error of
+1e-7 moves a Levenberg–Marquardt step by as little, and the band not at all); on a 1 s record it
+settles ~0.3 s earlier (the slowest decay, 30 ms, takes 0.28 s for the four decades)."""
+
 
 @njit(cache=True)
 def _converged(new, old, rate, tol):
@@ -119,37 +132,58 @@ def _converged(new, old, rate, tol):
 
 
 @njit(cache=True)
+def _trajectory_buffers(m, r):
+    return (
+        np.empty((r, r)), np.empty(m), np.empty(m), np.empty(m), np.empty(m),
+        np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m),
+    )  # fmt: skip
+
+
+@njit(cache=True)
+def _trajectory_sample(q, v, u, k0, a, e, h, substeps, r, Tc, b):
+    """``substeps`` predictor-corrector sub-steps of the state alone (buffers ``b`` of
+    :func:`_trajectory_buffers`); returns the new ``q, v`` (buffers swapped, not copied)."""
+    S, k1, R1, k2, R2, qp, vp, uu, km, qn, vn = b
+    m = q.size
+    for _ in range(substeps):
+        _stiff(q, k0, r, Tc, S, k1, R1)
+        for j in range(r):
+            uu[j] = u[j] - R1[j]
+        _oscillate(q, v, uu, k1, a, e, h, qp, vp, r)  # only the cubic modes' prediction is used
+        _stiff(qp, k0, r, Tc, S, k2, R2)
+        for j in range(m):
+            uu[j] = u[j] - 0.5 * (R1[j] + R2[j])
+            km[j] = 0.5 * (k1[j] + k2[j])
+        _oscillate(q, v, uu, km, a, e, h, qn, vn, m)
+        q, qn = qn, q
+        v, vn = vn, v
+    b = (S, k1, R1, k2, R2, qp, vp, uu, km, qn, vn)
+    return q, v, b
+
+
+@njit(cache=True)
 def fvk_trajectory(q0, v0, forces, k0, a, e, h, substeps, r, Tc, settle, tol):
     """Modal displacements ``(N + 1, m)`` of one real trajectory (forces ``(N, m)`` held per sample;
     from interval ``settle`` on the force is constant and the loop stops once the state settles)."""
     N, m = forces.shape
     Q = np.empty((N + 1, m))
-    q, v = q0.copy(), v0.copy()
-    S = np.empty((r, r))
-    k1, R1, k2, R2 = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
-    qp, vp, uu, km = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
-    qn, vn = np.empty(m), np.empty(m)
-    Q[0] = q
-    for n in range(N):
-        u = forces[n]
-        for _ in range(substeps):
-            _stiff(q, k0, r, Tc, S, k1, R1)
-            for j in range(r):
-                uu[j] = u[j] - R1[j]
-            _oscillate(q, v, uu, k1, a, e, h, qp, vp, r)  # only the cubic modes' prediction is used
-            _stiff(qp, k0, r, Tc, S, k2, R2)
-            for j in range(m):
-                uu[j] = u[j] - 0.5 * (R1[j] + R2[j])
-                km[j] = 0.5 * (k1[j] + k2[j])
-            _oscillate(q, v, uu, km, a, e, h, qn, vn, m)
-            q, qn = qn, q
-            v, vn = vn, v
+    Q[0] = q0
+    _continue(Q, q0.copy(), v0.copy(), forces, 0, k0, a, e, h, substeps, r, Tc, settle, tol)
+    return Q
+
+
+@njit(cache=True)
+def _continue(Q, q, v, forces, n0, k0, a, e, h, substeps, r, Tc, settle, tol):
+    """Fill ``Q[n0 + 1:]`` from the state ``q, v`` at sample ``n0``, stopping once settled."""
+    N = forces.shape[0]
+    b = _trajectory_buffers(q.size, r)
+    for n in range(n0, N):
+        q, v, b = _trajectory_sample(q, v, forces[n], k0, a, e, h, substeps, r, Tc, b)
         Q[n + 1] = q
         if n >= settle and _converged(Q[n + 1], Q[n], v * (h * substeps), tol):
             for j in range(n + 2, N + 1):
                 Q[j] = q
             break
-    return Q
 
 
 @njit(cache=True)
@@ -320,14 +354,16 @@ def _sample(state, u, du, k0, dk0, a, da, e, h, substeps, r, Tc, Bd, table, w):
 
 @njit(cache=True)
 def fvk_tangent(
-    q0, v0, forces, k0, dk0, a, da, e, h, substeps, r, Tc, Bd, dq0, dv0, amp, dforce, hats, g0, fc, settle, tol
-):
+    q0, v0, forces, k0, dk0, a, da, e, h, substeps, r, Tc, Bd, dq0, dv0, amp, dforce, hats, g0, fc, settle, tol,
+    tol_tangent,
+):  # fmt: skip
     """Trajectory ``(N+1, m)`` and its tangents ``(N+1, m, P)`` (tangent arrays mode-major:
     ``dk0, da, dq0, dv0, dforce`` are ``(m, P)``).
 
     The force tangent over interval ``n`` is ``amp[n] * dforce`` plus ``hats[n, g] * fc`` in the
     columns ``g0 + g`` of the gust knots (``hats`` may have no columns). From interval ``settle``
-    on force and tangent are constant; the loop stops once both settle.
+    on force and tangent are constant: once the tangent has settled to ``tol_tangent`` it is held
+    (a Jacobian needs no more digits) and the state alone goes on until it settles to ``tol``.
     """
     N, m = forces.shape
     P = dq0.shape[1]
@@ -353,9 +389,13 @@ def fvk_tangent(
         q, v, dq, dv = state[0], state[1], state[2], state[3]
         Q[n + 1] = q
         dQ[n + 1] = dq
-        if n >= settle and _converged(Q[n + 1], Q[n], v * dt, tol) and _converged(dQ[n + 1], dQ[n], dv * dt, tol):
+        if n >= settle and _converged(dQ[n + 1], dQ[n], dv * dt, tol_tangent):
             for j in range(n + 2, N + 1):
-                Q[j] = q
                 dQ[j] = dq
+            if not _converged(Q[n + 1], Q[n], v * dt, tol):
+                _continue(Q, q.copy(), v.copy(), forces, n + 1, k0, a, e, h, substeps, r, Tc, settle, tol)
+            else:
+                for j in range(n + 2, N + 1):
+                    Q[j] = q
             break
     return Q, dQ

@@ -28,7 +28,14 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation.realistic.berger_modal import BergerModal, oscillator_step
-from wingopt.estimation.realistic.fvk_kernels import SETTLE_TOL, fvk_tangent, fvk_trajectory, pair_tensor, settled_from
+from wingopt.estimation.realistic.fvk_kernels import (
+    SETTLE_TOL,
+    SETTLE_TOL_TANGENT,
+    fvk_tangent,
+    fvk_trajectory,
+    pair_tensor,
+    settled_from,
+)
 from wingopt.estimation.realistic.tangent import ForceTangent, _step, prestress_terms
 from wingopt.membrane import MembraneModel
 from wingopt.membrane.fvk import FvKMembrane
@@ -198,7 +205,7 @@ class FvKModal(BergerModal):
                 np.asarray(q0, float), np.asarray(v0, float), np.ascontiguousarray(forces, float), k0, mm(dk0), a,
                 mm(da), e, h, self.substeps, r, Tc, Bd, mm(dq0), mm(dv0), np.asarray(f.amp, float), mm(f.base),
                 np.ascontiguousarray(f.hats, float), int(f.g0), np.asarray(f.fc, float),
-                settled_from(forces, f.amp, f.hats), SETTLE_TOL,
+                settled_from(forces, f.amp, f.hats), SETTLE_TOL, SETTLE_TOL_TANGENT,
             )  # fmt: skip
             return Q, dQ.transpose(0, 2, 1)
         if not nonlinear:

@@ -69,6 +69,7 @@ def levenberg_marquardt(problem, theta0: np.ndarray, max_iter: int = 40, tol: fl
     f = float(rd @ rd + rp @ rp)
     converged = False
     it = 0
+    jacobian_first = True
     while True:
         H = Jd.T @ Jd + Rp.T @ Rp
         g = Jd.T @ rd + Rp.T @ rp
@@ -83,6 +84,7 @@ def levenberg_marquardt(problem, theta0: np.ndarray, max_iter: int = 40, tol: fl
             break
         it += 1
         dH = np.diag(H).copy()
+        accepted = None
         while True:
             try:
                 step = -np.linalg.solve(H + mu * np.diag(dH), g)
@@ -96,7 +98,10 @@ def levenberg_marquardt(problem, theta0: np.ndarray, max_iter: int = 40, tol: fl
                     "non-finite Levenberg–Marquardt step",
                     "check the data and the noise level, or use --model linear",
                 )
-            rd1, rp1 = problem.residuals(theta + step)
+            # after an accepted step the next trial is likely accepted too: its Jacobian comes with
+            # its residuals (one tangent run instead of a trajectory and then a tangent)
+            trial = problem.residuals(theta + step, jacobian=jacobian_first)
+            rd1, rp1 = trial[0], trial[1]
             f1 = float(rd1 @ rd1 + rp1 @ rp1)
             rho = (f - f1) / pred if np.isfinite(f1) and pred > 0 else -1.0
             if rho > 0:
@@ -106,7 +111,9 @@ def levenberg_marquardt(problem, theta0: np.ndarray, max_iter: int = 40, tol: fl
                 theta = theta + step
                 mu *= max(0.1, 1 - (2 * rho - 1) ** 3)
                 nu = 2.0
+                accepted = trial
                 break
+            jacobian_first = False
             mu *= nu
             nu *= 2.0
             if mu > 1e12:
@@ -115,7 +122,8 @@ def levenberg_marquardt(problem, theta0: np.ndarray, max_iter: int = 40, tol: fl
             log.debug("LM: no decrease along any damped step (decrement %.3g): stopped", decrement)
             converged = decrement < 100 * tol  # rounding-limited near a minimum
             break
-        rd, rp, Jd, Rp = problem.residuals(theta, jacobian=True)
+        rd, rp, Jd, Rp = accepted if len(accepted) == 4 else problem.residuals(theta, jacobian=True)
+        jacobian_first = True
         f = float(rd @ rd + rp @ rp)
     log.debug("LM: %d iterations, cost %.4g, converged %s", it, f, converged)
     H = Jd.T @ Jd + Rp.T @ Rp
