@@ -20,15 +20,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = [
-    "SETTLE_TOL",
-    "SETTLE_TOL_TANGENT",
-    "pair_tensor",
-    "settled_from",
-    "fvk_trajectory",
-    "fvk_tangent",
-    "fvk_step_tangent",
-]
+__all__ = ["SETTLE_TOL", "SETTLE_TOL_TANGENT", "pair_tensor", "settled_from"]
+__all__ += ["fvk_trajectory", "fvk_tangent", "fvk_step_tangent"]
 
 
 def pair_tensor(tensor: np.ndarray, r: int) -> np.ndarray:
