@@ -278,7 +278,6 @@ def _with_tension_profile(res: IdentificationResult, rp: RecordProblem, fit: Fit
     """Check the band by the lift's profile when the record holds little on the tension."""
     band = float(res.lift_std[-1])
     wide, info = tension_profile(rp, fit, fit.covariance * ad.inflation**2, band, lambda r, th: _fit(r, th, s))
-    info["applied"] = bool(info["computed"] and wide > 1.05 * band)  # a 5 % change is within the profile's noise
     res.info["tension_profile"] = info
     if not info["applied"]:
         return res

@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from wingopt.estimation.realistic.record_problem import RecordProblem
     from wingopt.estimation.realistic.solver import Fit
 
-__all__ = ["TRIGGER", "MAX_WIDENING", "tension_profile"]
+__all__ = ["TRIGGER", "MAX_WIDENING", "APPLY_ABOVE", "tension_profile"]
 
 log = logging.getLogger(__name__)
 
@@ -42,6 +42,9 @@ TRIGGER = 0.35
 
 MAX_WIDENING = 4.0
 """The profile widens the band at most this many times (a flat profile is bounded by the priors)."""
+
+APPLY_ABOVE = 1.05
+"""A widening up to this factor is within the profile's own noise: the band is kept."""
 
 PRESTRAINS = ("prestrain_x", "prestrain_y")
 
@@ -96,13 +99,14 @@ def tension_profile(
     lift_std : float
         The band, never narrower than ``lift_std``.
     info : dict
-        ``computed``; the scale's sigma and ratio; when computed the cost rises, the lifts held and
-        the widening factor.
+        ``computed``, ``applied``; the scale's sigma and ratio; when computed the cost rises, the
+        lifts held and the widening factor (applied above ``APPLY_ABOVE``).
     """
     if not (all(n in rp.prior.free for n in PRESTRAINS) and rp.nonlinear and rp.hats is None and lift_std > 0):
-        return lift_std, {"computed": False, "reason": "prestrains fixed, a linear membrane or a gust load"}
+        reason = "prestrains fixed, a linear membrane or a gust load"
+        return lift_std, {"computed": False, "applied": False, "reason": reason}
     d, ratio = _scale_ratio(rp, fit, cov)
-    info = {"computed": False, "scale_std": d, "ratio": ratio, "trigger": TRIGGER}
+    info = {"computed": False, "applied": False, "scale_std": d, "ratio": ratio, "trigger": TRIGGER}
     if ratio <= TRIGGER:
         return lift_std, info
     if not fit.converged:  # the profile is measured from the optimum; a capped fit has none (it warns)
@@ -123,6 +127,7 @@ def tension_profile(
         lifts.append(float(a @ (offset + basis @ fq.theta)))
     widen = max(1.0 / np.sqrt(r) if r > 0 else np.inf for r in rises)
     widen = float(min(max(widen, 1.0), MAX_WIDENING))
-    info.update(computed=True, cost_rises=[float(r) for r in rises], lifts_N=lifts, widening=widen)
+    applied = widen > APPLY_ABOVE
+    info.update(computed=True, applied=applied, cost_rises=[float(r) for r in rises], lifts_N=lifts, widening=widen)
     log.info("lift profile: cost rises %.2f / %.2f at the band's ends: band x%.2f", *rises, widen)
-    return lift_std * widen, info
+    return lift_std * (widen if applied else 1.0), info
