@@ -309,7 +309,7 @@ def cases() -> list[dict]:
 
 def _api(name: str, d: Path):
     import wingopt as wo
-    from wingopt.estimation.csv_data import read_measurements
+    from wingopt.measurements.csv_file import read_measurements
     from wingopt.problem import load_problem, parse_problem  # noqa: F401
 
     meas = read_measurements(RECORD, ("S1", "S2", "S3", "S4"))[0]

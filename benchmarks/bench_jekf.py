@@ -29,9 +29,9 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from wingopt.estimation import Measurements  # noqa: E402
 from wingopt.estimation.jekf import JEKFSettings, JointEKF  # noqa: E402
 from wingopt.estimation.jekf.tuning import cached_seed_lambda, select_lambda  # noqa: E402
+from wingopt.measurements import Measurements  # noqa: E402
 from wingopt.membrane import MembraneModel, add_noise  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
 from wingopt.workflows.protocols import simulate_case  # noqa: E402

@@ -29,9 +29,9 @@ import time
 
 import numpy as np
 
-from wingopt.estimation import Measurements
 from wingopt.estimation.mhe import MHESettings, mhe_identify
 from wingopt.fe import integrate
+from wingopt.measurements import Measurements
 from wingopt.membrane import MembraneModel, add_noise, bubble, simulate_response
 from wingopt.problem import load_problem
 from wingopt.workflows.protocols import relative_l2

@@ -35,7 +35,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify  # noqa: E402
-from wingopt.estimation.realistic.berger_modal import BergerModal  # noqa: E402
+from wingopt.membrane.modal.berger import BergerModal  # noqa: E402
 from wingopt.estimation.realistic.mhe_check import check_mhe_result  # noqa: E402
 from wingopt.fe import integrate  # noqa: E402
 from wingopt.membrane import MembraneModel, add_noise  # noqa: E402

@@ -73,7 +73,7 @@ def run(name: str, spec: dict, problem, seed: int, max_iter: int | None = None) 
     data = np.column_stack([rec.t[k:] - rec.t[k], rec.values[k:]])
     c0 = time.process_time()
     settings = None if max_iter is None else RealisticSettings(max_iter=max_iter)
-    out = identify(problem, data=data, realistic_settings=settings)
+    out = identify(problem, data=data, settings=settings)
     cpu = time.process_time() - c0
     res = out.result
     lt = float(rec.lift[-1])

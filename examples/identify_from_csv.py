@@ -36,8 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
-from wingopt.estimation.csv_data import read_measurements
 from wingopt.estimation.mhe import MHESettings, mhe_identify
+from wingopt.measurements.csv_file import read_measurements
 from wingopt.membrane import MembraneModel
 from wingopt.problem import load_problem
 

@@ -33,7 +33,7 @@ def main(quick: bool = False, out: Path | None = None) -> dict:
 
     # 3. Identify a load from four stretch sensors (truth simulated on a finer mesh).
     membrane = wo.load_problem("membrane")
-    run = wo.identify(membrane, load="L1", noise=0.01, seed=0, method="mhe")
+    run = wo.identify(membrane, load="L1", noise_percent=1, seed=0, method="mhe")
     s = run.summary()
     numbers["mhe_load_error"] = s["load_error"]
     print(

@@ -20,6 +20,8 @@ ENTRY_POINTS = [
     "wingopt.estimation.jekf:identify",
     "wingopt.estimation.noise:estimate_noise_std",
     "wingopt.workflows.protocols:simulate_case",
+    "wingopt.membrane.truth:simulate_truth",
+    "wingopt.membrane.forward:forward_model",
 ]
 
 

@@ -102,7 +102,7 @@ def test_failure_keeps_earlier_results(tmp_path, capsys):
 
 def test_nan_sensor_rows_are_skipped_and_counted(tmp_path):
     """Missing sensor values are allowed: skipped by the estimator, never invented, and counted."""
-    from wingopt.estimation.csv_data import read_measurements
+    from wingopt.measurements.csv_file import read_measurements
 
     rows = good_csv_rows(20) + "0.020,,0.01,nan,0.01\n" + "0.021,0.01,0.01,0.01,0.01\n"
     meas, report = read_measurements(write(tmp_path / "gaps.csv", "t,S1,S2,S3,S4\n" + rows), ("S1", "S2", "S3", "S4"))

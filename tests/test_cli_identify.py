@@ -225,16 +225,16 @@ def test_lambda_rules_have_distinct_names_per_method(small_file, tmp_path, capsy
 def test_options_of_the_mhe_only_are_refused_for_the_jekf(small_file, tmp_path, capsys):
     argv = ["identify", str(small_file), "--load", "L1", "--method", "jekf", "--backend", "ipopt"]
     assert main(argv + ["--out", str(tmp_path / "x")]) == 2
-    assert "--method mhe only" in capsys.readouterr().err
+    assert "--backend is not used by the jekf-seed estimator" in capsys.readouterr().err
 
 
 def test_data_at_another_sample_rate(small_file, tmp_path, capsys):
     """DIC at 300 Hz: the estimator uses the data's own sample period."""
-    from wingopt.membrane import MembraneModel, add_noise, bubble, load_case, simulate_response
+    from wingopt.membrane import MembraneModel, add_noise, bubble, forward_model, load_case
 
     problem = load_problem(small_file)
     truth = MembraneModel.from_problem(problem, (25, 13))
-    traj = simulate_response(truth, load_case("L1", 0.14, 0.07), t_end=1.0, dt=1 / 300, z0=bubble(0.14, 0.07))
+    traj = forward_model(truth, "linear").run(load_case("L1", 0.14, 0.07), t_end=1.0, dt=1 / 300, z0=bubble(0.14, 0.07))
     y, _ = add_noise(traj.outputs, 0.01, 0)
     data = tmp_path / "dic300.csv"
     write_csv(data, traj.t, y, problem.sensor_names)
@@ -279,15 +279,16 @@ def test_compare_resume_counts_a_repeated_run_once(small_file, tmp_path, capsys)
 
 
 def test_state_prior_option():
-    from wingopt.cli.identify import state_prior_settings
     from wingopt.errors import InputError
     from wingopt.estimation.mhe import STATE_PRIOR_EVIDENCE
+    from wingopt.estimation.options import IdentifyOptions
+    from wingopt.estimation.runners import mhe_settings
 
-    assert state_prior_settings("evidence") == {"state_prior_choices": STATE_PRIOR_EVIDENCE}
-    assert state_prior_settings("0.01") == {"state_prior": 0.01}
+    assert mhe_settings(IdentifyOptions(state_prior="evidence")).state_prior_choices == STATE_PRIOR_EVIDENCE
+    assert mhe_settings(IdentifyOptions(state_prior="0.01")).state_prior == 0.01
     for bad in ("-1", "tight", "nan"):
-        with pytest.raises(InputError, match="state-prior"):
-            state_prior_settings(bad)
+        with pytest.raises(InputError, match="state_prior"):
+            IdentifyOptions(state_prior=bad)
 
 
 def test_identify_data_with_the_nonlinear_model(record, small_file, tmp_path, capsys):

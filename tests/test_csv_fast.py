@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from wingopt.errors import DataFileError
-from wingopt.estimation import csv_data
-from wingopt.estimation.csv_data import read_measurements
+from wingopt.measurements import csv_file as csv_data
+from wingopt.measurements.csv_file import read_measurements
 
 NAMES = ("S1", "S2", "S3", "S4")
 RECORD = Path(__file__).resolve().parents[1] / "examples" / "data" / "synthetic_tunnel_300Hz.csv"

@@ -3,7 +3,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from wingopt.dynamics import SecondOrderSystem, discretize, simulate, zoh
-from wingopt.membrane import bubble, load_case, simulate_response
+from wingopt.membrane import bubble, forward_model, load_case
 
 
 @pytest.fixture(scope="module")
@@ -29,7 +29,7 @@ def test_modal_zoh_equals_the_augmented_exponential(coarse, membrane_problem):
     z0 = coarse.project(bubble(W, L))
     dsys = discretize(coarse.system.state_space(), 1e-3)
     X = simulate(dsys, np.concatenate([z0, np.zeros(coarse.n)]), np.tile(f, (200, 1)))
-    tr = simulate_response(coarse, f, t_end=0.2, dt=1e-3, z0=z0)
+    tr = forward_model(coarse, "linear").run(f, 0.2, dt=1e-3, z0=z0)
     scale = np.abs(X[:, : coarse.n]).max()
     np.testing.assert_allclose(tr.z, X[:, : coarse.n], atol=1e-10 * scale)
     np.testing.assert_allclose(tr.zdot, X[:, coarse.n :], atol=1e-10 * np.abs(X[:, coarse.n :]).max())
@@ -38,7 +38,7 @@ def test_modal_zoh_equals_the_augmented_exponential(coarse, membrane_problem):
 def test_static_limit_of_a_constant_load(membrane_models, membrane_problem):
     model = membrane_models[(25, 13)]
     f = model.project(load_case("L3", membrane_problem.width, membrane_problem.height))
-    tr = simulate_response(model, f, t_end=1.0)
+    tr = forward_model(model, "linear").run(f, 1.0)
     z_static = model.static_deflection(f)
     assert np.abs(tr.z[-1] - z_static).max() < 1e-6 * np.abs(z_static).max()
 
@@ -63,7 +63,7 @@ def test_undamped_energy_is_conserved_by_the_discrete_map(coarse, membrane_probl
 def test_time_varying_load_and_sensor_outputs(coarse, membrane_problem):
     W, L = membrane_problem.width, membrane_problem.height
     f1 = coarse.project(load_case("L1", W, L))
-    tr = simulate_response(coarse, lambda t: f1 * min(1.0, t / 0.1), t_end=0.3)
+    tr = forward_model(coarse, "linear").run(lambda t: f1 * min(1.0, t / 0.1), t_end=0.3)
     assert tr.load.shape == (300, coarse.n)
     np.testing.assert_allclose(tr.load[50], 0.5 * f1)
     np.testing.assert_allclose(tr.outputs, coarse.sensors.outputs(tr.z))

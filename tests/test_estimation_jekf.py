@@ -10,7 +10,6 @@ import pytest
 
 from wingopt.dynamics import zoh
 from wingopt.errors import InputError
-from wingopt.estimation import Measurements
 from wingopt.estimation.jekf import (
     JEKFSettings,
     JointEKF,
@@ -23,7 +22,8 @@ from wingopt.estimation.jekf import (
 )
 from wingopt.estimation.jekf.presets import noise_free
 from wingopt.estimation.noise import JEKF_NOISE, estimate_noise_std, noise_variance
-from wingopt.membrane import MembraneModel, bubble, load_case, simulate_response
+from wingopt.measurements import Measurements
+from wingopt.membrane import MembraneModel, bubble, forward_model, load_case
 from wingopt.workflows.protocols import simulate_case
 
 COARSE = (13, 7)
@@ -59,7 +59,7 @@ def test_joint_transition_is_the_plant_zoh_with_the_load_held(coarse, membrane_p
     W, L = membrane_problem.width, membrane_problem.height
     f = coarse.project(load_case("L2", W, L))
     z0 = coarse.project(bubble(W, L))
-    tr = simulate_response(coarse, f, t_end=0.02, dt=dt, z0=z0)
+    tr = forward_model(coarse, "linear").run(f, 0.02, dt=dt, z0=z0)
     x = np.concatenate([z0, np.zeros(n), f])
     for k in range(1, tr.z.shape[0]):
         x = Fj @ x

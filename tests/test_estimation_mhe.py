@@ -24,7 +24,7 @@ from wingopt.estimation.regularization import (
     knee_lambda,
 )
 from wingopt.fe import VALUE, EdgeCondition, SplineBasis1D, TensorSpace, assemble, assemble_mixed, separable
-from wingopt.membrane import MembraneModel, load_case, simulate_response
+from wingopt.membrane import MembraneModel, forward_model, load_case
 from wingopt.optim.status import SolveStatus
 from wingopt.workflows.protocols import simulate_case
 
@@ -103,7 +103,7 @@ def test_window_prediction_is_the_exact_discrete_model(small_model, small_proble
     red = MHEModel.build(small_model, ls, modes=None)
     load = load_case("L2", small_problem.width, small_problem.height)
     z0 = small_model.project(lambda x, y: 0.003 * np.sin(np.pi * x / 0.14) * np.sin(np.pi * y / 0.07))
-    traj = simulate_response(small_model, load, t_end=0.05, z0=z0)
+    traj = forward_model(small_model, "linear").run(load, t_end=0.05, z0=z0)
     theta = np.concatenate([red.to_modal(z0), np.zeros(red.m), red.modal_forces(ls.project(load))])
     basis = red.window(traj.t.size)
     Y = red.outputs(red.modal_trajectory(basis, theta))
@@ -250,14 +250,14 @@ def test_sign_follows_the_prior(small_model, small_case):
 def test_start_from_rest_without_deflection_prior(small_model, small_problem):
     """Plant at rest, no bubble: the scan starts off zero (where 2 x^T C_i vanishes) and converges;
     the sign of L1 comes from initial_load alone; L2 (no net lift) is flagged as undetermined."""
-    from wingopt.estimation.data import Measurements
+    from wingopt.measurements.series import Measurements
     from wingopt.membrane import add_noise
 
     truth = MembraneModel.from_problem(small_problem, SMALL_TRUTH)
     out = {}
     for name in ("L1", "L2"):
         load = load_case(name, small_problem.width, small_problem.height)
-        traj = simulate_response(truth, load, t_end=0.3)
+        traj = forward_model(truth, "linear").run(load, t_end=0.3)
         y, _ = add_noise(traj.outputs, 0.01, 0)
         meas = Measurements(traj.t, y, small_problem.sensor_names)
         s = MHESettings(window=100, stride=50, modes=20)
@@ -278,11 +278,13 @@ def test_random_walk_tracks_a_load_step(small_model, small_problem):
     consistency test sees the data contradict the estimate and restarts it after the step (without
     the test it averages the two levels)."""
     f1 = small_model.project(load_case("L1", small_problem.width, small_problem.height))
-    from wingopt.estimation.data import Measurements
+    from wingopt.measurements.series import Measurements
     from wingopt.membrane import add_noise, bubble
 
     dt = small_problem.identification.dt
-    traj = simulate_response(small_model, lambda t: f1 * (1.0 if t < 0.25 else 2.0), t_end=0.5, z0=bubble(0.14, 0.07))
+    traj = forward_model(small_model, "linear").run(
+        lambda t: f1 * (1.0 if t < 0.25 else 2.0), t_end=0.5, z0=bubble(0.14, 0.07)
+    )
     y, sigma = add_noise(traj.outputs, 0.01, 3)
     meas = Measurements(traj.t, y, small_problem.sensor_names, sigma)
     s = MHESettings(window=100, stride=25, modes=20, regularization=1e-6, load_model="random_walk")

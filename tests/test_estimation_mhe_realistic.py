@@ -13,11 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from wingopt.estimation.data import Measurements
 from wingopt.estimation.mhe import MHESettings, mhe_identify
 from wingopt.fe import integrate
-from wingopt.membrane import add_noise, simulate_response
-from wingopt.workflows.protocols import relative_l2
+from wingopt.measurements.series import Measurements
+from wingopt.membrane import add_noise, forward_model, relative_l2
 from wingopt.workflows.studies import load_field
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
@@ -49,7 +48,7 @@ def _record(tunnel, problem, rate, profile, seed=SEED):
     key = (rate, profile.__name__, seed)
     if key not in _RECORDS:
         truth, _, _, f, _ = tunnel
-        traj = simulate_response(truth, lambda t: f * profile(t), t_end=1.5, dt=1.0 / rate)
+        traj = forward_model(truth, "linear").run(lambda t: f * profile(t), t_end=1.5, dt=1.0 / rate)
         y, _ = add_noise(traj.outputs, 0.02, seed)
         _RECORDS[key] = Measurements(traj.t, y, problem.sensor_names)
     return _RECORDS[key]

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from wingopt.estimation.realistic import fvk_kernels
-from wingopt.estimation.realistic.fvk_model import FvKModal
 from wingopt.estimation.realistic.solver import levenberg_marquardt
-from wingopt.estimation.realistic.tangent import ForceTangent
 from wingopt.membrane import MembraneModel, bubble, load_case
+from wingopt.membrane.modal import kernels as fvk_kernels
+from wingopt.membrane.modal.fvk import FvKModal
+from wingopt.membrane.modal.tangent import ForceTangent
 from wingopt.problem import load_problem
 
 N = 120

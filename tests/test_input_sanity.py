@@ -20,12 +20,13 @@ import pytest
 import wingopt as wo
 from wingopt.cli import main
 from wingopt.errors import InputError
-from wingopt.estimation.csv_data import read_measurements
+from wingopt.estimation.options import IdentifyOptions
+from wingopt.measurements.csv_file import read_measurements
 from wingopt.problem import PROBLEMS_DIR, load_problem
 from wingopt.problem.membrane import StretchSensorSpec
 
 LINEAR = ("--model", "linear", "--no-model-form")  # input handling is tested, not the membrane model
-LINEAR_API = {"model": "linear", "model_form": False}  # the same through the API
+LINEAR_API = {"model": "linear", "options": IdentifyOptions(model_form=False)}  # the same through the API
 
 ROOT = Path(__file__).resolve().parents[1]
 RECORD = ROOT / "examples" / "data" / "synthetic_tunnel_300Hz.csv"
@@ -85,16 +86,16 @@ def test_clean_record_has_an_empty_warnings_list(membrane, tmp_path, capsys):
 
 def test_corner_bunched_sensors_are_warned(membrane):
     corner = membrane.with_sensors([StretchSensorSpec(f"S{i + 1}", r) for i, r in enumerate(CORNER)])
-    run = wo.identify(corner, load="L1", noise=0.01, **SHORT)
+    run = wo.identify(corner, load="L1", noise_percent=1, **SHORT)
     assert any("bunched" in w and "11 % of the chord" in w for w in run.warnings), run.warnings
     assert run.summary()["warnings"] == run.warnings
-    default = wo.identify(membrane, load="L1", noise=0.01, **SHORT)
+    default = wo.identify(membrane, load="L1", noise_percent=1, **SHORT)
     assert default.warnings == []
 
 
 def test_duplicate_sensors_are_warned(membrane):
     same = membrane.with_sensors([StretchSensorSpec(f"S{i + 1}", membrane.sensors[0].rect) for i in range(4)])
-    run = wo.identify(same, load="L1", noise=0.01, **SHORT)
+    run = wo.identify(same, load="L1", noise_percent=1, **SHORT)
     assert any("S1/S2 (1.0000)" in w and "same thing" in w for w in run.warnings), run.warnings
 
 
@@ -102,7 +103,7 @@ def test_near_duplicate_pair_is_named(membrane):
     rects = [s.rect for s in membrane.sensors]
     rects[1] = (rects[0][0] + 1e-4, *rects[0][1:])
     near = membrane.with_sensors([StretchSensorSpec(f"S{i + 1}", r) for i, r in enumerate(rects)])
-    run = wo.identify(near, load="L1", noise=0.01, **SHORT)
+    run = wo.identify(near, load="L1", noise_percent=1, **SHORT)
     assert any("S1/S2" in w for w in run.warnings) and not any("S3/S4" in w for w in run.warnings)
 
 
@@ -127,7 +128,7 @@ def test_data_that_are_mostly_noise_are_warned(membrane):
     run = wo.identify("membrane", data=np.column_stack([t, s, 0.8 * s, 1.1 * s, 0.9 * s]), nodes=(13, 7), **LINEAR_API)
     noisy = [w for w in run.warnings if "mostly noise" in w]
     assert len(noisy) == 1 and "% of its peak reading" in noisy[0], run.warnings
-    clean = wo.identify("membrane", load="L1", noise=0.05, nodes=(13, 7), truth_nodes=(17, 9), t_end=0.3)
+    clean = wo.identify("membrane", load="L1", noise_percent=5, nodes=(13, 7), truth_nodes=(17, 9), t_end=0.3)
     assert not any("mostly noise" in w for w in clean.warnings), clean.warnings  # 5 %: the protocol's worst
 
 
@@ -181,7 +182,7 @@ def test_sensor_named_t_is_refused(membrane, tmp_path, capsys):
     assert "name = 't'" in capsys.readouterr().err
     renamed = membrane.with_sensors([dataclasses.replace(membrane.sensors[0], name="t"), *membrane.sensors[1:]])
     with pytest.raises(InputError, match="reserved for the time column"):
-        wo.identify(renamed, load="L1", noise=0.01, **SHORT)
+        wo.identify(renamed, load="L1", noise_percent=1, **SHORT)
 
 
 def test_seed_minus_one_is_refused_everywhere(membrane, tmp_path, capsys):

@@ -4,21 +4,27 @@ import dataclasses
 
 import numpy as np
 import pytest
+from _alpha import AlphaSettings, LinearStructure
+from _alpha import integrate as alpha_integrate
 
 from wingopt.errors import InputError
 from wingopt.fe import DX, DY, assemble, load_vector, separable
-from wingopt.membrane import (
-    FvKMembrane,
-    MembraneModel,
-    MembraneParameters,
-    bubble,
-    load_case,
-    simulate_fvk,
-    simulate_response,
-)
-from wingopt.membrane.nonlinear import AlphaSettings, LinearStructure, integrate
+from wingopt.membrane import Gust, MembraneModel, MembraneParameters, RecordProtocol, bubble, load_case, simulate_truth
+from wingopt.membrane.forward import forward_model
+from wingopt.membrane.full import FvKMembrane, integrate
+from wingopt.membrane.modal import FvKModal
 from wingopt.problem import load_problem
-from wingopt.workflows.records import Gust, simulate_record
+from wingopt.workflows.protocols import simulate_case
+
+
+def exact_hold(model, f, t_end, z0, dt=1e-3):
+    """The linear model's exact zero-order hold (the dynamics layer's modal discretisation)."""
+    modal = model.modal()
+    steps = int(round(t_end / dt))
+    Q, _ = modal.discretize(dt).simulate(
+        modal.to_modal(z0, model.mass), np.zeros(modal.count), np.broadcast_to(f, (steps, model.n))
+    )
+    return Q @ modal.shapes.T
 
 
 @pytest.fixture(scope="module")
@@ -86,9 +92,9 @@ def test_dynamic_small_load_limit_is_the_linear_model(problem, fvk):
     z0 = fvk.linear.project(bubble(problem.width, problem.height))
     rel = []
     for scale in (1e-2, 1e-3):
-        res = simulate_fvk(fvk, scale * f, 0.15, z0=scale * z0, substeps=1)
-        ref = simulate_response(fvk.linear, scale * f, 0.15, z0=scale * z0)
-        rel.append(np.max(np.abs(res.z - ref.z)) / np.max(np.abs(ref.z)))
+        res = integrate(fvk, scale * f, 0.15, z0=scale * z0, substeps=1)
+        ref = exact_hold(fvk.linear, scale * f, 0.15, scale * z0)
+        rel.append(np.max(np.abs(res.z - ref)) / np.max(np.abs(ref)))
     assert rel[1] <= 1e-5
     assert np.log10(rel[0] / rel[1]) == pytest.approx(2.0, abs=0.05)
 
@@ -101,8 +107,8 @@ def test_generalised_alpha_small_load_limit(problem):
     lin = LinearStructure(m.mass, m.damping, m.linear.stiffness)
     rel = []
     for scale in (1e-2, 1e-3):
-        a = integrate(m, lambda t, s=scale: m.gram @ (s * f), 0.1, s_z0 := scale * z0)
-        b = integrate(lin, lambda t, s=scale: m.gram @ (s * f), 0.1, s_z0)
+        a = alpha_integrate(m, lambda t, s=scale: m.gram @ (s * f), 0.1, s_z0 := scale * z0)
+        b = alpha_integrate(lin, lambda t, s=scale: m.gram @ (s * f), 0.1, s_z0)
         rel.append(np.max(np.abs(a.z - b.z)) / np.max(np.abs(b.z)))
     assert rel[1] <= 1e-5
     assert np.log10(rel[0] / rel[1]) == pytest.approx(2.0, abs=0.05)
@@ -156,82 +162,89 @@ def test_exponential_and_generalised_alpha_integrators_agree(problem):
     m = FvKMembrane(problem, (13, 7))
     f = _l1(problem, m)
     z0 = m.linear.project(bubble(problem.width, problem.height))
-    etd = simulate_fvk(m, f, 0.1, z0=z0, substeps=4)
-    alpha = integrate(m, lambda t: m.gram @ f, 0.1, z0, settings=AlphaSettings(substeps=16, tol=1e-9))
+    etd = integrate(m, f, 0.1, z0=z0, substeps=4)
+    alpha = alpha_integrate(m, lambda t: m.gram @ f, 0.1, z0, settings=AlphaSettings(substeps=16, tol=1e-9))
     s_etd, s_alpha = m.linear.sensors.outputs(etd.z), m.linear.sensors.outputs(alpha.z)
     assert np.max(np.abs(s_etd - s_alpha)) <= 5e-3 * np.max(np.abs(s_alpha))
 
 
 def test_record_generator(problem):
-    rec = simulate_record(problem, "L1", nodes=(13, 7), truth="linear", t_end=0.2, noise=0.01, seed=3)
-    ref = simulate_response(
-        rec.model, load_case("L1", problem.width, problem.height), 0.2, z0=bubble(problem.width, problem.height)
-    )
-    assert np.max(np.abs(rec.z - ref.z)) <= 1e-10 * np.max(np.abs(ref.z))
-    assert np.allclose(rec.noise_std, 0.01 * np.max(np.abs(rec.outputs), axis=0))
-    assert rec.steady_lift == pytest.approx(200 * problem.width * problem.height * 4 / np.pi**2, rel=1e-9)
-    meas = rec.to_measurements()
+    rec = simulate_case(problem, "L1", 0.01, 3, (13, 7), 0.2)
+    ref = exact_hold(rec.truth_model, rec.truth_model.project(load_case("L1", problem.width, problem.height)), 0.2,
+                     rec.truth_model.project(bubble(problem.width, problem.height)))  # fmt: skip
+    assert np.max(np.abs(rec.trajectory.z - ref)) <= 1e-10 * np.max(np.abs(ref))
+    assert np.allclose(rec.noise_std, 0.01 * np.max(np.abs(rec.trajectory.outputs), axis=0))
+    assert rec.true_lift == pytest.approx(200 * problem.width * problem.height * 4 / np.pi**2, rel=1e-9)
+    meas = rec.measurements
     assert meas.values.shape == (201, 4) and meas.sensor_names == problem.sensor_names
     g = Gust()
     assert float(g.factor(g.start + g.duration / 2)) == pytest.approx(1.6)
     assert float(g.factor(g.start - 1e-9)) == 1.0 and float(g.factor(g.start + g.duration + 1e-9)) == 1.0
-    le = simulate_record(problem, "LE", nodes=(13, 7), truth="berger", t_end=0.05)
+    le = simulate_case(problem, "LE", 0.0, None, (13, 7), 0.05, truth="berger")
     W, L = problem.width, problem.height
-    assert le.steady_lift == pytest.approx(200 * 256 / 27 / 20 * 2 / np.pi * W * L, rel=1e-9)
-    with pytest.raises(InputError, match="truth"):
-        simulate_record(problem, "L1", truth="exact")
+    assert le.true_lift == pytest.approx(200 * 256 / 27 / 20 * 2 / np.pi * W * L, rel=1e-9)
+    gusty = simulate_case(problem, "L1", 0.0, None, (13, 7), 0.5, gust=g)
+    assert gusty.lift_history.max() == pytest.approx(1.6 * rec.true_lift, rel=1e-3)
+    dropped = simulate_truth(forward_model(problem, "linear", nodes=(13, 7)), "L1", RecordProtocol(t_end=0.2, drop=0.1))
+    lost = np.isnan(dropped.measurements.values).any(axis=1)
+    assert 5 <= lost.sum() <= 40 and not lost[0]
+    with pytest.raises(InputError, match="physics"):
+        simulate_case(problem, "L1", 0.0, truth="exact")
     with pytest.raises(InputError, match="load"):
-        simulate_record(problem, "L9")
+        simulate_case(problem, "L9", 0.0)
     with pytest.raises(InputError, match="eps0_x"):
-        simulate_record(problem, "L1", prestrain=(-0.01, 0.05))
+        simulate_case(problem, "L1", 0.0, prestrain=(-0.01, 0.05))
+
+
+def test_a_steady_start_is_at_rest_in_the_static_equilibrium(problem):
+    """``start="static"``: the record starts loaded and stays there (FvK, no transient)."""
+    rec = simulate_case(problem, "L1", 0.0, None, (13, 7), 0.1, truth="fvk", start="static")
+    out = rec.trajectory.outputs
+    assert np.max(np.abs(out - out[0])) <= 1e-6 * np.max(np.abs(out))
 
 
 @pytest.mark.slow
 def test_fvk_truth_record_time_convergence(problem):
     """49x25 FvK truth, 0.3 s: substeps 2 vs 4 differ by < 1 % of the sensor peak (2nd order)."""
-    a = simulate_record(problem, "L1", t_end=0.3, substeps=2)
-    b = simulate_record(problem, "L1", t_end=0.3, substeps=4)
-    peak = np.max(np.abs(b.outputs))
-    assert np.max(np.abs(a.outputs - b.outputs)) <= 0.01 * peak
+    a = simulate_case(problem, "L1", 0.0, None, t_end=0.3, truth="fvk", substeps=2).trajectory.outputs
+    b = simulate_case(problem, "L1", 0.0, None, t_end=0.3, truth="fvk", substeps=4).trajectory.outputs
+    peak = np.max(np.abs(b))
+    assert np.max(np.abs(a - b)) <= 0.01 * peak
 
 
 def test_cubic_modal_model_is_exact_on_its_modes_and_close_to_fvk(problem):
-    """The projected cubic force equals FvK's; r = 20 tracks the FvK record to 0.1 % at the end."""
-    from wingopt.membrane import CubicModalMembrane
-
-    small = CubicModalMembrane(FvKMembrane(problem, (13, 7), MembraneParameters(0.06, 0.04)), modes=10)
-    a = np.random.default_rng(7).standard_normal(10) * 2e-3
-    z = small.shapes @ a
-    exact = small.shapes.T @ (small.fvk.force(z) - small.fvk.linear_stiffness @ z)
-    assert np.max(np.abs(small.cubic_force(a) - exact)) <= 1e-12 * np.max(np.abs(exact))
+    """The projected cubic force equals FvK's; 20 cubic modes track the FvK record to 0.2 %."""
+    small = FvKModal.build(MembraneModel.from_problem(problem, (13, 7)), 40, cubic_modes=10)
+    fvk_small = FvKMembrane.from_model(small.model)
+    a = np.zeros(small.m)
+    a[:10] = np.random.default_rng(7).standard_normal(10) * 2e-3
+    z = small.deflection(a)
+    exact = small.shapes.T @ (fvk_small.force(z) - fvk_small.linear_stiffness @ z)
+    assert np.max(np.abs(small.cubic_force(a)[:10] - exact[:10])) <= 1e-12 * np.max(np.abs(exact))
     fvk = FvKMembrane(problem)
-    rom = CubicModalMembrane(fvk, modes=20)
+    rom = FvKModal.build(fvk.linear, fvk.n, substeps=2, cubic_modes=20)
     f = _l1(problem, fvk)
     z0 = fvk.linear.project(bubble(problem.width, problem.height))
-    ref = fvk.linear.sensors.outputs(simulate_fvk(fvk, f, 0.3, z0=z0, substeps=2).z)
-    out = rom.simulate(f, 0.3, z0=z0, substeps=2).outputs
+    ref = fvk.linear.sensors.outputs(integrate(fvk, f, 0.3, z0=z0, substeps=2).z)
+    out = fvk.linear.sensors.outputs(rom.record(f, 0.3, z0=z0))
     peak = np.max(np.abs(ref), axis=0)
     assert np.sqrt(np.mean(((out - ref) / peak) ** 2)) <= 2e-3  # measured 7e-4 over 1 s
     assert np.max(np.abs(out[-1] / ref[-1] - 1)) <= 3e-3
 
 
-def test_cubic_modal_sensitivities(problem):
-    from wingopt.membrane import CubicModalMembrane
-
-    rom = CubicModalMembrane(FvKMembrane(problem, (13, 7)), modes=10)
-    f = _l1(problem, rom.fvk)
-    z0 = rom.fvk.linear.project(bubble(problem.width, problem.height))
-    dz0 = np.random.default_rng(8).standard_normal((rom.fvk.n, 1)) * 1e-3
-    tr = rom.simulate(f, 0.05, z0=z0, sensitivities=True, state_directions=(dz0, np.zeros((rom.fvk.n, 0))))
-    th = rom.params.as_array()
-    for i in range(4):
-        e = np.zeros(4)
-        e[i] = 1e-6 * max(th[i], 1.0)
-        up = rom.with_params(MembraneParameters(*(th + e))).simulate(f, 0.05, z0=z0).outputs
-        dn = rom.with_params(MembraneParameters(*(th - e))).simulate(f, 0.05, z0=z0).outputs
-        ref = tr.doutputs[:, :, i]
-        assert np.max(np.abs((up - dn) / (2 * e[i]) - ref)) <= 1e-6 * np.max(np.abs(ref))
-    up = rom.simulate(f, 0.05, z0=z0 + 1e-4 * dz0[:, 0]).outputs
-    dn = rom.simulate(f, 0.05, z0=z0 - 1e-4 * dz0[:, 0]).outputs
-    ref = tr.doutputs[:, :, 4]
-    assert np.max(np.abs((up - dn) / 2e-4 - ref)) <= 1e-6 * np.max(np.abs(ref))
+def test_every_forward_model_has_the_linear_small_load_limit_and_a_static_start(problem):
+    """The forward-model protocol: full and modal, linear/Berger/FvK agree at 1e-3 of L1, and each
+    model's equilibrium is at rest under its own dynamics."""
+    model = MembraneModel.from_problem(problem, (13, 7))
+    f = 1e-3 * model.project(load_case("L1", problem.width, problem.height))
+    z0 = 1e-3 * model.project(bubble(problem.width, problem.height))
+    ref = forward_model(model, "linear").run(f, 0.05, z0=z0).outputs
+    for physics in ("linear", "berger", "fvk"):
+        for reduced in (False, True):
+            fwd = forward_model(model, physics, reduced=reduced, modes=model.n, cubic_modes=8, substeps=2)
+            out = fwd.run(f, 0.05, z0=z0).outputs
+            assert np.max(np.abs(out - ref)) <= 2e-5 * np.max(np.abs(ref)), (physics, reduced)
+            big = 1e3 * f
+            zs = fwd.equilibrium(big)
+            rest = fwd.run(big, 0.02, z0=zs).outputs
+            assert np.max(np.abs(rest - rest[0])) <= 1e-5 * np.max(np.abs(rest[0])), (physics, reduced)

@@ -2,18 +2,16 @@
 cubic force against FvK's, its exact sensitivities, its small-load limit, its distance to the FvK
 simulator, and identification on FvK truth from a finer mesh (no inverse crime)."""
 
-import dataclasses
-
 import numpy as np
 import pytest
 
 from wingopt.errors import InputError
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify
-from wingopt.estimation.realistic.fvk_model import FvKModal
-from wingopt.membrane import MembraneModel, add_noise, bubble, load_case
-from wingopt.membrane.fvk import FvKMembrane
+from wingopt.membrane import MembraneModel, bubble, load_case
+from wingopt.membrane.full.fvk import FvKMembrane
+from wingopt.membrane.modal.fvk import FvKModal
 from wingopt.problem import load_problem
-from wingopt.workflows.records import simulate_record
+from wingopt.workflows.protocols import simulate_case
 
 
 @pytest.fixture(scope="module")
@@ -81,7 +79,7 @@ def test_small_load_limit_is_the_linear_model(model, small):
     for scale in (1e-3, 1e-4):
         q0, u = _inputs(model, small, scale)
         F = np.tile(u, (100, 1))
-        lin = small.simulate_linear(q0, np.zeros(small.m), F, 0.05, 0.05)
+        lin = small.simulate(q0, np.zeros(small.m), F, 0.05, 0.05, nonlinear=False)
         non = small.simulate(q0, np.zeros(small.m), F, 0.05, 0.05)
         diffs.append(np.abs(non - lin).max() / np.abs(lin).max())
     assert diffs[1] < 1e-7
@@ -95,10 +93,11 @@ def test_close_to_the_fvk_simulator_on_the_same_mesh(model):
     pr = model.problem
     fm = FvKModal.build(model, 48, substeps=2, cubic_modes=16)
     for load in ("L1", "LE", "L2"):
-        rec = simulate_record(pr, load, truth="fvk", nodes=None)
+        rec = simulate_case(pr, load, 0.0, None, None, truth="fvk")
         q0 = fm.to_modal(model.project(bubble(pr.width, pr.height)))
         Q = fm.simulate(q0, np.zeros(fm.m), np.tile(fm.input_matrix @ model.project(rec.load), (1000, 1)), 0.05, 0.05)
-        err = (fm.outputs(Q) - rec.outputs) / np.abs(rec.outputs).max(0)
+        out = rec.trajectory.outputs
+        err = (fm.outputs(Q) - out) / np.abs(out).max(0)
         assert np.sqrt(np.mean(err**2)) < 2e-3, load
 
 
@@ -117,17 +116,16 @@ def test_identifies_lift_on_an_fvk_record_from_a_finer_mesh(model):
     file's 0.05. FvK model: lift +1.8 % with a 1.8 % band (1 sigma), adequate; the Berger model on
     the same record: +16 %, flagged."""
     pr = model.problem
-    rec = simulate_record(pr, "L1", t_end=0.3, nodes=(33, 17), prestrain=(0.055, 0.045), truth="fvk")
-    noisy, _ = add_noise(rec.outputs, 0.01, 3)
-    meas = dataclasses.replace(rec.to_measurements(), values=noisy, noise_std=None)
+    rec = simulate_case(pr, "L1", 0.01, 3, (33, 17), 0.3, truth="fvk", prestrain=(0.055, 0.045), tell_noise=False)
+    meas = rec.measurements
     s = RealisticSettings(membrane_model="fvk", cubic_modes=10, modes=24, membrane="nonlinear", load_model="constant")
     res = realistic_identify(model, meas, s)
-    err = (res.lift[-1] - rec.lift[-1]) / rec.lift[-1]  # L1 is one-signed: ∫|P| = lift
-    assert abs(err) < 0.04 and abs(err) < 2 * res.lift_std[-1] / rec.lift[-1], err
+    err = (res.lift[-1] - rec.true_lift) / rec.true_lift  # L1 is one-signed: ∫|P| = lift
+    assert abs(err) < 0.04 and abs(err) < 2 * res.lift_std[-1] / rec.true_lift, err
     assert res.info["model_adequate"]
     assert res.info["model"] == "nonlinear (FvK cubic, 10 modes)"
     berger = realistic_identify(model, meas, s.replace(membrane_model="berger"))
-    assert (berger.lift[-1] - rec.lift[-1]) / rec.lift[-1] > 0.1
+    assert (berger.lift[-1] - rec.true_lift) / rec.true_lift > 0.1
     assert not berger.info["model_adequate"]
 
 
@@ -136,13 +134,10 @@ def test_identifies_lift_on_an_fvk_record_from_a_finer_mesh(model):
 def test_must_show_lift_on_fvk_truth_49x25(model, load):
     """The seed's protocol on FvK truth 49x25, 1 % noise, seed 0, defaults with the FvK model: lift
     within 3 % of ∫|P| (measured -0.99 %, +0.17 %, +1.42 %; the Berger model +13 %, +15 %, +25 %)."""
-    from wingopt.fe import integrate
 
-    rec = simulate_record(model.problem, load, truth="fvk", noise=0.01, seed=0)
-    meas = dataclasses.replace(rec.to_measurements(), noise_std=None)
-    res = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk"))
-    absl = integrate(rec.model.space, lambda x, y: np.abs(rec.load(x, y)), order=8)
-    assert abs(res.lift[-1] - rec.lift[-1]) / absl < 0.03
+    rec = simulate_case(model.problem, load, 0.01, 0, truth="fvk", tell_noise=False)
+    res = realistic_identify(model, rec.measurements, RealisticSettings(membrane_model="fvk"))
+    assert abs(res.lift[-1] - rec.true_lift) / rec.true_absolute_load < 0.03
     assert res.info["model_adequate"]
 
 
@@ -152,7 +147,7 @@ def test_identify_model_fvk_selects_the_fvk_membrane():
     from wingopt.workflows.identify import identify
 
     s = RealisticSettings(modes=12, cubic_modes=6, shapes=6, membrane="nonlinear", load_model="constant")
-    run = identify("membrane", load="L1", t_end=0.1, model="fvk", realistic_settings=s)
+    run = identify("membrane", load="L1", t_end=0.1, model="fvk", settings=s)
     assert run.result.info["model"] == "nonlinear (FvK cubic, 6 modes)"
     assert np.isfinite(run.result.lift[-1])
 
@@ -161,10 +156,9 @@ def test_measured_data_default_to_the_fvk_estimator():
     """``identify(data=...)`` with ``model="auto"``: the realistic estimator with the FvK membrane."""
     from wingopt.problem import load_problem
     from wingopt.workflows.identify import identify
-    from wingopt.workflows.realistic_truth import fvk_case
 
     problem = load_problem("membrane")
-    case = fvk_case(problem, "L1", 0.01, 0, nodes=(17, 9), t_end=0.2)
+    case = simulate_case(problem, "L1", 0.01, 0, (17, 9), 0.2, truth="fvk", tell_noise=False)
     run = identify(problem, data=case.measurements, nodes=(13, 7))
     assert "FvK cubic" in run.result.info["backend"]
     assert set(run.summary()["parameters"]) >= {"prestrain_x", "prestrain_y"}

@@ -1,7 +1,7 @@
 """Issue 11 Must-show checks of the realistic estimator (slow: minutes each on a shared machine).
 
 Truth: Berger membrane on 49x25 with 120 modes and 8 sub-steps per sample
-(:func:`wingopt.workflows.realistic_truth.berger_case`), the seed's protocol (1 cm bubble at rest,
+(:func:`wingopt.workflows.protocols.simulate_case`, full-order Berger), the seed's protocol (1 cm bubble at rest,
 1 s at 1 kHz, four default sensors, 1 % noise); estimator on 25x13 with 48 modes and 2 sub-steps,
 reading the problem file (prestrain 0.05, damping x1). NOT the Föppl–von Kármán truth (not merged
 yet): the Berger physics is shared, the mesh, modes and integration are not.
@@ -16,8 +16,9 @@ import pytest
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify
 from wingopt.estimation.realistic.mhe_check import check_mhe_result
 from wingopt.membrane import MembraneModel, add_noise
+from wingopt.membrane.loads import ISSUE_GUST
 from wingopt.problem import load_problem
-from wingopt.workflows.realistic_truth import ISSUE_GUST, berger_case
+from wingopt.workflows.protocols import simulate_case
 from wingopt.workflows.studies import load_field, run_method
 
 pytestmark = pytest.mark.slow
@@ -32,7 +33,9 @@ def _problem_model():
 @functools.cache
 def _clean(load, nonlinear=True, prestrain=None, damping=1.0, gust=False):
     problem, _ = _problem_model()
-    return berger_case(problem, load, 0.0, None, prestrain, damping, ISSUE_GUST if gust else None, nonlinear=nonlinear)
+    gust = ISSUE_GUST if gust else None
+    truth = "berger" if nonlinear else "linear"
+    return simulate_case(problem, load, 0.0, None, truth=truth, prestrain=prestrain, damping=damping, gust=gust)
 
 
 def _run(load, seed=0, noise=0.01, estimator="realistic", settings=None, **truth):

@@ -9,10 +9,10 @@ import pytest
 
 from wingopt.errors import InputError, ProblemFileError
 from wingopt.estimation.realistic.adequacy import assess
-from wingopt.estimation.realistic.berger_modal import BergerModal
 from wingopt.estimation.realistic.load_model import GustAmplitude, LoadShapes
 from wingopt.estimation.realistic.record_problem import ParameterPrior, RecordProblem
-from wingopt.membrane import MembraneModel, bubble, load_case, simulate_response
+from wingopt.membrane import MembraneModel, bubble, forward_model, load_case
+from wingopt.membrane.modal.berger import BergerModal
 from wingopt.problem import load_problem
 
 
@@ -42,7 +42,7 @@ def test_small_load_limit_is_the_linear_model(model):
     scale = 1e-4
     f = model.project(load_case("L1", pr.width, pr.height)) * scale
     z0 = model.project(bubble(pr.width, pr.height)) * scale
-    lin = simulate_response(model, f, t_end=0.2, z0=z0)
+    lin = forward_model(model, "linear").run(f, 0.2, z0=z0)
     Z = bm.deflection(_protocol(model, bm, 200, scale))
     assert np.abs(Z - lin.z).max() / np.abs(lin.z).max() < 1e-7
     # and the stretch matters at the protocol's amplitude (tens of percent of the tension)

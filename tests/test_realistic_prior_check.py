@@ -10,7 +10,7 @@ import pytest
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify
 from wingopt.membrane import MembraneModel
 from wingopt.problem import load_problem
-from wingopt.workflows.realistic_truth import fvk_case
+from wingopt.workflows.protocols import simulate_case
 
 
 @pytest.fixture(scope="module")
@@ -21,7 +21,7 @@ def problem_model():
 
 def _run(problem_model, load):
     problem, model = problem_model
-    case = fvk_case(problem, load, 0.01, 0, nodes=(33, 17), t_end=0.5)
+    case = simulate_case(problem, load, 0.01, 0, (33, 17), 0.5, truth="fvk", tell_noise=False)
     return case, realistic_identify(model, case.measurements, RealisticSettings(membrane_model="fvk"))
 
 
@@ -55,7 +55,7 @@ def test_a_load_inside_the_prior_is_left_alone(problem_model):
 def test_a_fit_stopped_by_the_iteration_cap_says_so(problem_model):
     """A Levenberg-Marquardt run cut short is reported (converged False and a warning), never silent."""
     problem, model = problem_model
-    case = fvk_case(problem, "L1", 0.01, 0, nodes=(33, 17), t_end=0.5)
+    case = simulate_case(problem, "L1", 0.01, 0, (33, 17), 0.5, truth="fvk", tell_noise=False)
     capped = realistic_identify(model, case.measurements, RealisticSettings(membrane_model="fvk", max_iter=1))
     assert capped.info["converged"] is False
     assert any("did not converge in 1 Levenberg-Marquardt" in w for w in capped.info["warnings"])
@@ -66,7 +66,7 @@ def test_a_fit_stopped_by_the_iteration_cap_says_so(problem_model):
 def test_the_prestrains_carry_the_modal_models_split_term(problem_model):
     """The FvK modal model biases the prestrain split by 2-5 % on FvK truth (docs/estimation_realistic.md,
     8-seed grid); its prestrain sigma is never below that model-form term, the damping's is untouched."""
-    from wingopt.estimation.realistic.fvk_model import PRESTRAIN_MODEL_FORM_REL, prestrain_std_with_model_form
+    from wingopt.estimation.realistic.model_form import PRESTRAIN_MODEL_FORM_REL, prestrain_std_with_model_form
 
     assert prestrain_std_with_model_form("prestrain_x", 0.05, 0.002) == pytest.approx(np.hypot(0.002, 0.0015))
     assert prestrain_std_with_model_form("damping", 1.0, 0.01) == 0.01

@@ -6,24 +6,25 @@ Truth: the FvK membrane on 33x17 (the estimator's mesh is 25x13), L1, 1 % noise.
 import numpy as np
 import pytest
 
-from wingopt.estimation.data import Measurements
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify
 from wingopt.estimation.realistic.tension_profile import MAX_WIDENING, TRIGGER
+from wingopt.measurements.series import Measurements
 from wingopt.membrane import MembraneModel
 from wingopt.problem import load_problem
-from wingopt.workflows.records import simulate_record
+from wingopt.workflows.protocols import simulate_case
 
 
 @pytest.fixture(scope="module")
 def setup():
     problem = load_problem("membrane")
     model = MembraneModel.from_problem(problem)
-    rec = simulate_record(problem, "L1", t_end=1.0, nodes=(33, 17), noise=0.01, seed=0)
-    return model, rec
+    case = simulate_case(problem, "L1", 0.01, 0, (33, 17), 1.0, truth="fvk", tell_noise=False)
+    return model, case
 
 
 def test_a_bubble_start_record_keeps_its_laplace_band(setup):
-    model, rec = setup
+    model, case = setup
+    rec = case.measurements
     k = int(np.searchsorted(rec.t, 0.5))
     meas = Measurements(rec.t[:k], rec.values[:k], rec.sensor_names, None, "bubble start")
     res = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk"))
@@ -35,7 +36,8 @@ def test_a_bubble_start_record_keeps_its_laplace_band(setup):
 def test_a_record_without_a_transient_has_its_band_checked_by_the_lifts_profile(setup):
     """The last 0.5 s of the record (the transient over): the tension is nearly the prior's, the
     lift is refitted held at both ends of its band, and the band is the profile's (never narrower)."""
-    model, rec = setup
+    model, case = setup
+    rec = case.measurements
     k = int(np.searchsorted(rec.t, 0.5))
     meas = Measurements(rec.t[k:] - rec.t[k], rec.values[k:], rec.sensor_names, None, "steady")
     res = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk", max_iter=200))
@@ -48,4 +50,4 @@ def test_a_record_without_a_transient_has_its_band_checked_by_the_lifts_profile(
     assert all(0 < r < 3 for r in tp["cost_rises"])
     expect = min(max(1 / np.sqrt(min(tp["cost_rises"])), 1.0), MAX_WIDENING)
     assert tp["widening"] == pytest.approx(expect)
-    assert abs(lift - rec.lift[-1]) <= 2 * res.lift_std[-1]
+    assert abs(lift - case.true_lift) <= 2 * res.lift_std[-1]

@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 
 from wingopt.errors import DataFileError, InputError
-from wingopt.estimation.csv_stream import CsvRowParser
 from wingopt.estimation.mhe import MHESettings, mhe_identify
 from wingopt.estimation.streaming import StreamingEstimator, StreamSettings
 from wingopt.estimation.streaming.rows import LinearRows, RtiNormalEquations
+from wingopt.measurements.csv_stream import CsvRowParser
 from wingopt.membrane import MembraneModel
 from wingopt.problem import PROBLEMS_DIR
 from wingopt.workflows.protocols import simulate_case

@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify
-from wingopt.estimation.realistic.fvk_model import FvKModal
 from wingopt.estimation.streaming import StreamingEstimator, StreamSettings
-from wingopt.estimation.streaming.fvk_step import FvKSample
 from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator, NonlinearStreamSettings
 from wingopt.membrane import MembraneModel, bubble
+from wingopt.membrane.modal.fvk import FvKModal
+from wingopt.membrane.modal.fvk_step import FvKSample
 from wingopt.problem import load_problem
-from wingopt.workflows.realistic_truth import fvk_case
+from wingopt.workflows.protocols import simulate_case
 from wingopt.workflows.stream import follow
 
 
@@ -62,7 +62,7 @@ def test_one_sample_is_the_batch_integrator_and_its_tangent_is_exact():
 def record():
     problem = load_problem("membrane")
     model = MembraneModel.from_problem(problem)
-    case = fvk_case(problem, "L1", 0.01, 0, prestrain=(0.055, 0.045), nodes=(33, 17), t_end=0.5)
+    case = simulate_case(problem, "L1", 0.01, 0, (33, 17), 0.5, truth="fvk", prestrain=(0.055, 0.045), tell_noise=False)
     return problem, model, case
 
 
@@ -99,6 +99,6 @@ def test_follow_auto_streams_the_fvk_membrane(record, tmp_path):
     rows = ["t," + ",".join(meas.sensor_names)]
     rows += [f"{t:.6f}," + ",".join(f"{v:.8e}" for v in y) for t, y in zip(meas.t, meas.values)]
     src.write_text("\n".join(rows + ["# end"]) + "\n")
-    summary = follow(problem, tmp_path / "out", source=str(src), model="auto")
-    assert summary["method"] == "nonlinear-stream" and summary["estimator"]["model"].startswith("nonlinear (FvK")
+    summary = follow(problem, tmp_path / "out", source=str(src))
+    assert summary["method"] == "ekf-stream" and summary["estimator"]["model"].startswith("nonlinear (FvK")
     assert summary["lift_N"] == pytest.approx(case.true_lift, rel=0.03)

@@ -18,12 +18,12 @@ import pytest
 
 from wingopt.errors import InputError
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify
-from wingopt.estimation.realistic.berger_modal import BergerModal
-from wingopt.estimation.realistic.tangent import simulate_tangent
-from wingopt.estimation.streaming.berger_step import BergerSample
 from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator, NonlinearStreamSettings
 from wingopt.membrane import bubble
-from wingopt.workflows.realistic_truth import berger_case
+from wingopt.membrane.modal.berger import BergerModal
+from wingopt.membrane.modal.berger_step import BergerSample
+from wingopt.membrane.modal.tangent import simulate_tangent
+from wingopt.workflows.protocols import simulate_case
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -102,7 +102,7 @@ def test_small_load_limit_is_the_linear_model():
     u = c @ bs.load_forces
     par = (0.05, 0.05, 1.0)
     q1, v1 = bs.step(q, v, u, *par)
-    Ql = bm.simulate_linear(q, v, u[None], *par)
+    Ql = bm.simulate(q, v, u[None], *par, nonlinear=False)
     assert np.abs(q1 - Ql[1]).max() <= 1e-6 * np.abs(Ql[1]).max()
     bs.nonlinear = False
     try:
@@ -123,7 +123,9 @@ def test_small_load_limit_is_the_linear_model():
 def record(membrane_models):
     """0.6 s of Berger truth (37x19, 80 modes), L1, 1 % noise, prestrain (0.055, 0.045), damping x1.3."""
     problem = membrane_models[(25, 13)].problem
-    case = berger_case(problem, "L1", 0.01, 7, (0.055, 0.045), 1.3, nodes=(37, 19), modes=80, t_end=0.6)
+    case = simulate_case(
+        problem, "L1", 0.01, 7, (37, 19), 0.6, truth="berger", prestrain=(0.055, 0.045), damping=1.3, tell_noise=False
+    )
     return membrane_models[(25, 13)], case, dataclasses.replace(case.measurements, noise_std=None)
 
 
@@ -217,11 +219,11 @@ def test_cli_stdin_stream_with_the_nonlinear_model(record, streamed, tmp_path):
     )  # fmt: skip
     assert run.returncode == 0, run.stderr
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["method"] == "nonlinear-stream" and summary["stopped"] == "end of input"
+    assert summary["method"] == "ekf-stream" and summary["stopped"] == "end of input"
     assert summary["samples"] == meas.count == summary["rows_written"]
     assert summary["estimator"]["phase"] == "tracking" and "prestrain_x" in summary["estimator"]["parameters"]
     assert summary["lift_N"] == pytest.approx(streamed[1][-1].lift, rel=1e-6)
-    assert any(line.startswith("nonlinear-stream: 601 samples") for line in run.stderr.splitlines())
+    assert any(line.startswith("ekf-stream: 601 samples") for line in run.stderr.splitlines())
 
 
 def test_no_bubble_prior_gets_the_sign_from_the_prior_load(record, streamed):

@@ -28,7 +28,7 @@ _LAZY = {
     "write_morph_outputs": "wingopt.workflows.morph",
     "identify": "wingopt.workflows.identify",
     "write_identify_outputs": "wingopt.workflows.identify",
-    "read_measurements": "wingopt.estimation.csv_data",
+    "read_measurements": "wingopt.measurements.csv_file",
     "run_demo": "wingopt.workflows.demo",
 }
 

@@ -91,9 +91,10 @@ def _old_record_key(rec: dict) -> dict:
 
 
 def run(args) -> int:
-    from wingopt.cli.identify import parse_noise, state_prior_settings
+    from wingopt.cli.identify import parse_noise
     from wingopt.cli.sweep import announce, engine_settings
-    from wingopt.estimation.mhe import MHESettings
+    from wingopt.estimation.options import IdentifyOptions
+    from wingopt.estimation.runners import mhe_settings
     from wingopt.problem import load_problem, parse_mesh
     from wingopt.workflows.studies import METHODS, comparison_markdown, record_from_dict, summarize
     from wingopt.workflows.sweep.engine import Engine
@@ -125,7 +126,7 @@ def run(args) -> int:
             lines = "".join(json.dumps(_old_record_key(r)) + "\n" for r in old)
             write_atomic(rec_path, lambda p: p.write_text(lines))
     records = RecordLog(rec_path, fresh=not args.resume)
-    settings = MHESettings(load_space=args.load_space, **state_prior_settings(args.state_prior))
+    settings = mhe_settings(IdentifyOptions(load_space=args.load_space, state_prior=args.state_prior))
     t0 = time.perf_counter()
 
     # One task list: the table's runs (with the oracle), the sign study's not already in the table,

@@ -56,22 +56,21 @@ def _fmt(v) -> str:
     return f"{v:.6g}" if isinstance(v, float) else str(v)
 
 
-def run_stream(args, mhe_settings) -> int:
+def run_stream(args, options) -> int:
     """``wingopt identify PROBLEM --follow FILE`` / ``--data -``; returns the exit code."""
+    from wingopt.estimation.registry import check_options, resolve
     from wingopt.problem import load_problem, parse_mesh
     from wingopt.results import check_writable, to_jsonable
-    from wingopt.workflows.stream import COLUMNS, check_stream_model, follow
+    from wingopt.workflows.stream import COLUMNS, follow
 
-    if args.method != "mhe":
-        raise InputError(f"--method {args.method}: streaming (--follow, --data -) supports mhe only")
     if args.print_every < 1:
         raise InputError(f"--print-every {args.print_every}: expected a positive integer")
     if args.idle_timeout is not None and not args.idle_timeout > 0:
         raise InputError(f"--idle-timeout {args.idle_timeout}: expected a positive number of seconds")
     if not args.poll > 0:
         raise InputError(f"--poll {args.poll}: expected a positive number of seconds")
-    model = getattr(args, "model", "auto")
-    check_stream_model(model)
+    spec = resolve(args.method, args.model, stream=True)
+    check_options(spec, options)
     check_writable(args.out)
     problem = load_problem(args.problem)
     if problem.kind != "membrane":
@@ -96,10 +95,8 @@ def run_stream(args, mhe_settings) -> int:
             problem,
             args.out,
             source=args.follow,
-            model=model,
-            mhe_settings=mhe_settings,
-            noise_std=args.noise_std,
-            initial_load=args.initial_load,
+            spec=spec,
+            options=options,
             poll=args.poll,
             idle_timeout=args.idle_timeout,
             stop=stop,

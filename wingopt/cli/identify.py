@@ -13,11 +13,11 @@ import json
 import re
 import sys
 
-import numpy as np
-
 from wingopt.cli import follow
 from wingopt.errors import InputError
+from wingopt.estimation.registry import METHOD_ALIASES, METHODS, MODEL_ALIASES, MODELS
 from wingopt.results import to_jsonable
+from wingopt.workflows.protocols import TRUTHS
 
 ORDER = 30
 
@@ -92,83 +92,82 @@ def register(sub, common) -> None:
     p.add_argument("--mesh", help="estimator mesh NXxNY (default: the problem's)")
     p.add_argument(
         "--method",
-        choices=("mhe", "jekf-seed", "jekf-tuned", "jekf"),
-        default="mhe",
-        help="estimator: mhe (default); jekf-seed (alias jekf) = the seed's filter (200 Pa prior, R = 1e-4, "
-        "lambda tuned on the noise-free truth as the seed did, a default lambda on measured data); "
-        "jekf-tuned = zero initial load, lambda from the data",
+        choices=METHODS + tuple(METHOD_ALIASES),
+        default="auto",
+        help="estimator: auto (default: batch on --data and on nonlinear truth, mhe on the seed's linear "
+        "protocol, ekf on streams); mhe = the seed protocol's moving-horizon estimator (linear membrane); "
+        "batch = whole-record fit with prestrains and damping identified (berger or fvk membrane); "
+        "jekf-seed (alias jekf) = the seed's filter; jekf-tuned = zero initial load, lambda from the data; "
+        "ekf = the streaming filter of the batch model",
     )
     p.add_argument(
         "--model",
-        choices=("auto", "linear", "nonlinear", "fvk"),
+        choices=MODELS + tuple(MODEL_ALIASES),
         default="auto",
-        help="membrane model of --method mhe: fvk = the realistic estimator with the Foppl-von Karman membrane "
-        "(prestrains and damping identified, gusts followed, misfit flag; the data choose nonlinear or linear "
-        "membrane); nonlinear = the same with the Berger membrane; linear = the seed's linear MHE (unchanged); "
-        "auto (default): fvk on --data, --follow and --truth fvk, nonlinear on --truth berger, linear on the "
-        "seed's simulated linear protocol (docs/estimation_realistic.md)",
+        help="membrane the estimator assumes: fvk (Foppl-von Karman), berger (uniform tension; alias "
+        "nonlinear), linear (the seed's); auto (default) follows --method and the data "
+        "(docs/estimation_realistic.md). Options the chosen pair does not use are refused.",
     )
     p.add_argument(
         "--no-model-form",
-        action="store_true",
-        help="with --model linear: do not cross-check a flagged result with the FvK estimator (faster; the band "
-        "then covers only the misfit, not the model's bias)",
+        dest="model_form",
+        action="store_const",
+        const=False,
+        help="mhe: do not cross-check a flagged result with the FvK estimator (faster; the band then covers "
+        "only the misfit, not the model's bias)",
     )
     t = p.add_argument_group("simulated truth (--load)")
     t.add_argument(
         "--truth",
-        choices=("linear", "berger", "fvk"),
+        choices=TRUTHS,
         default="linear",
         help="truth membrane: linear (default, the seed's protocol), berger, fvk (Foppl-von Karman, high fidelity)",
     )
     t.add_argument("--truth-prestrain", nargs=2, type=float, metavar=("EX", "EY"), help="truth prestrain (file's)")
     t.add_argument("--truth-damping", type=float, default=1.0, help="truth damping factor (default 1)")
     t.add_argument("--gust", action="store_true", help="1-cos gust on the load: +60 %% over 0.2 s from t = 0.4 s")
-    g = p.add_argument_group("moving-horizon estimator")
-    g.add_argument("--backend", choices=("numpy", "cvxpy", "ipopt"), default="numpy", help="window solver")
-    g.add_argument("--qp-solver", choices=("clarabel", "osqp"), default="clarabel", help="QP solver of cvxpy")
-    g.add_argument("--load-space", choices=("fixed", "free"), default="fixed", help="load basis (default fixed)")
+    g = p.add_argument_group("estimator options (each refused by an estimator that does not use it)")
+    g.add_argument("--backend", dest="solver", choices=("numpy", "cvxpy", "ipopt"), help="mhe window solver (numpy)")
+    g.add_argument("--qp-solver", choices=("clarabel", "osqp", "daqp"), help="QP solver of --backend cvxpy (clarabel)")
+    g.add_argument("--load-space", choices=("fixed", "free"), help="mhe load basis (default fixed)")
     g.add_argument(
         "--state-prior",
-        default="1",
-        help="prior std of the initial modal state relative to the data's amplitude (default 1: weak), or "
+        help="mhe: prior std of the initial modal state relative to the data's amplitude (default 1: weak), or "
         "'evidence': chosen among 1, 0.1, 0.01, 0.001 by the first window's evidence (helps --load-space free)",
     )
     g.add_argument(
         "--window",
-        default="0.2s",
-        help="window length: seconds with a unit (0.2s, 200ms) or a whole number of samples (200); "
+        help="mhe window length: seconds with a unit (0.2s, 200ms) or a whole number of samples (200); "
         "default 0.2s (200 samples at 1 kHz, 60 at 300 Hz)",
     )
-    g.add_argument("--stride", default="0.05s", help="window step, same units as --window (default 0.05s)")
+    g.add_argument("--stride", help="mhe window step, same units as --window (default 0.05s)")
     g.add_argument(
         "--load-model",
-        choices=("constant", "random_walk"),
-        default="constant",
-        help="constant (default): a steady load, information accumulates, a change restarts the estimate; "
-        "random_walk: a load that varies in time (amplitude time scale --load-timescale)",
+        choices=("auto", "constant", "varying", "random_walk", "gust"),
+        help="constant: a steady load; varying (aliases random_walk, gust): a load that follows gusts (mhe: random "
+        "walk with --load-timescale; batch: a gust amplitude); auto (the batch default): varying only when the "
+        "constant load misfits",
     )
     g.add_argument(
         "--load-timescale",
         type=float,
-        default=1.0,
-        help="random walk: time (s) over which the load's amplitude may change by its own size (default 1)",
+        help="mhe --load-model varying: time (s) over which the load's amplitude may change by its own size (1)",
     )
     g.add_argument(
         "--no-consistency",
-        action="store_true",
-        help="do not skip an unexplained start (load onset) nor restart on data inconsistent with the estimate",
+        dest="consistency",
+        action="store_const",
+        const=False,
+        help="mhe: do not skip an unexplained start (load onset) nor restart on data inconsistent with the estimate",
     )
-    p.add_argument(
-        "--lambda", dest="lam", type=float, help="fixed Tikhonov weight, any method (default: from the data)"
-    )
+    p.add_argument("--lambda", dest="lam", type=float, help="fixed Tikhonov weight (mhe, jekf; default: from the data)")
     p.add_argument(
         "--lambda-rule",
         help="data-only rule choosing lambda: mhe knee (default), morozov, gcv; jekf-tuned late-innovation-lr "
         "(default), prediction-evidence, quasi-optimality (docs/formulations.md)",
     )
-    g.add_argument("--modes", type=int, default=40, help="membrane modes kept (default 40)")
-    g.add_argument("--pressure-bounds", nargs=2, type=float, metavar=("MIN", "MAX"), help="Pa (cvxpy/ipopt)")
+    g.add_argument("--modes", type=int, help="membrane modes kept (mhe 40, batch and ekf 48, jekf all)")
+    g.add_argument("--pressure-bounds", nargs=2, type=float, metavar=("MIN", "MAX"), help="Pa (mhe, cvxpy/ipopt)")
     p.add_argument("--initial-load", type=float, help="sign prior, Pa (default: the problem's initial_load)")
     p.add_argument("--noise-std", type=float, help="sensor noise std (default: estimated from the data)")
     p.add_argument(
@@ -181,56 +180,28 @@ def register(sub, common) -> None:
     p.set_defaults(func=run)
 
 
-def state_prior_settings(text: str) -> dict:
-    """``MHESettings`` fields of a ``--state-prior`` value: a positive number or ``evidence``."""
-    from wingopt.estimation.mhe import STATE_PRIOR_EVIDENCE
+def identify_options(args):
+    """The :class:`~wingopt.estimation.options.IdentifyOptions` of the command line (unset: ``None``)."""
+    from wingopt.estimation.options import IdentifyOptions
+    from wingopt.values import LambdaChoice
 
-    if text.strip().lower() == "evidence":
-        return {"state_prior_choices": STATE_PRIOR_EVIDENCE}
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not (np.isfinite(value) and value > 0):
-        raise InputError(f"--state-prior {text!r}: expected a positive number or 'evidence'")
-    return {"state_prior": value}
-
-
-def parse_duration(text: str, name: str) -> dict:
-    """``--window``/``--stride`` value: ``"0.2s"``/``"200ms"`` (seconds) or ``"200"`` (samples).
-
-    Returns the ``MHESettings`` fields: ``{name + "_s": seconds}`` or ``{name: samples}``.
-    """
-    s = str(text).strip().lower()
-    m = re.fullmatch(r"([0-9]*\.?[0-9]+(?:e[-+]?[0-9]+)?)\s*(s|ms)?", s)
-    if not m:
-        raise InputError(f"--{name} {text!r}: expected seconds with a unit (0.2s, 200ms) or whole samples (200)")
-    value, unit = float(m.group(1)), m.group(2)
-    if unit is None:
-        if value != int(value) or value < 1:
-            raise InputError(f"--{name} {text!r}: a bare number is samples (a whole number); add 's' for seconds")
-        return {name: int(value)}
-    seconds = value / 1000.0 if unit == "ms" else value
-    if not seconds > 0:
-        raise InputError(f"--{name} {text!r}: expected a positive duration")
-    return {f"{name}_s": seconds}
-
-
-def _settings(args):
-    from wingopt.estimation.mhe import MHESettings
-
-    return MHESettings(
-        **state_prior_settings(args.state_prior),
-        **parse_duration(args.window, "window"),
-        **parse_duration(args.stride, "stride"),
+    lam = None if args.lam is None and args.lambda_rule is None else LambdaChoice(args.lam, args.lambda_rule)
+    return IdentifyOptions(
+        lam=lam,
+        window=args.window,
+        stride=args.stride,
+        solver=args.solver,
+        qp_solver=args.qp_solver,
+        modes=args.modes,
         load_model=args.load_model,
         load_timescale=args.load_timescale,
-        consistency=not args.no_consistency,
-        modes=args.modes,
-        load_space=args.load_space,
-        backend=args.backend,
-        qp_solver=args.qp_solver,
+        state_prior=args.state_prior,
         pressure_bounds=tuple(args.pressure_bounds) if args.pressure_bounds else None,
+        load_space=args.load_space,
+        consistency=args.consistency,
+        noise_std=args.noise_std,
+        initial_load=args.initial_load,
+        model_form=args.model_form,
     )
 
 
@@ -238,39 +209,30 @@ def run(args) -> int:
     from wingopt.problem import load_problem, parse_mesh
     from wingopt.resources import parse_size
     from wingopt.results.writer import check_writable
-    from wingopt.values import LambdaChoice
     from wingopt.workflows.identify import identify, write_identify_outputs
 
     check_writable(args.out)
+    options = identify_options(args)
     problem = load_problem(args.problem)
     if problem.kind != "membrane":
         raise InputError(f"problem = {args.problem!r}: identify needs a membrane problem, got kind {problem.kind!r}")
-    if args.method != "mhe" and (args.backend != "numpy" or args.load_space != "fixed" or args.state_prior != "1"):
-        raise InputError("--backend, --load-space and --state-prior apply to --method mhe only")
-    settings = _settings(args) if args.method == "mhe" else None
     if follow.wants_stream(args):
-        return follow.run_stream(args, settings)
+        return follow.run_stream(args, options)
     if args.load and not args.t_end > 0:
         raise InputError(f"t-end = {args.t_end!r}: expected a positive duration (s)")
-    if args.noise_std is not None and not (np.isfinite(args.noise_std) and args.noise_std > 0):
-        raise InputError(f"noise-std = {args.noise_std!r}: expected a positive number (sensor output units)")
     run_ = identify(
         problem,
         load=args.load,
-        noise=parse_noise(args.noise) if args.load else 0.0,
+        noise_percent=parse_noise(args.noise) * 100 if args.load else 1.0,
         seed=args.seed,
         data=args.data,
         method=args.method,
+        model=args.model,
+        options=options,
         truth_nodes=None if args.same_mesh else parse_mesh(args.truth_mesh),
         t_end=args.t_end,
         nodes=parse_mesh(args.mesh) if args.mesh is not None else None,
-        initial_load=args.initial_load,
-        noise_std=args.noise_std,
-        mhe_settings=settings,
-        lam=None if args.lam is None and args.lambda_rule is None else LambdaChoice(args.lam, args.lambda_rule),
         max_memory=parse_size(args.max_memory) if args.max_memory else None,
-        model=args.model,
-        model_form=not args.no_model_form,
         truth=args.truth,
         truth_prestrain=tuple(args.truth_prestrain) if args.truth_prestrain else None,
         truth_damping=args.truth_damping,
@@ -290,7 +252,7 @@ def print_warnings(command: str, summary: dict) -> None:
 
 
 def _gust():
-    from wingopt.workflows.realistic_truth import ISSUE_GUST
+    from wingopt.membrane.loads import ISSUE_GUST
 
     return ISSUE_GUST
 

@@ -22,19 +22,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wingopt.design.priors import edge_loads, leading_edge_load, smooth_loads
+from wingopt.design.priors import edge_loads, leading_edge_suction, smooth_loads
 from wingopt.errors import InputError
-from wingopt.estimation.data import Measurements
 from wingopt.estimation.mhe import MHESettings
 from wingopt.fe import integrate
+from wingopt.measurements.series import Measurements
 from wingopt.membrane import (
     LOAD_CASES,
     MembraneModel,
     PressureLoad,
+    RecordProtocol,
     StretchSensors,
-    bubble,
+    forward_model,
     load_case,
-    simulate_response,
+    simulate_truth,
 )
 from wingopt.problem.membrane import MembraneProblem, StretchSensorSpec
 from wingopt.workflows.studies import load_field, run_method
@@ -51,7 +52,7 @@ def named_load(name: str, width: float, height: float) -> PressureLoad:
     if name in LOAD_CASES:
         return load_case(name, width, height)
     if name == "leading-edge":
-        return leading_edge_load(width, height)
+        return leading_edge_suction(width, height)
     if name.startswith("smooth:"):
         try:
             _, seed, k, *ell = name.split(":")
@@ -104,10 +105,8 @@ def _truth(problem: MembraneProblem, load: str, nodes: tuple[int, int], t_end: f
     key = (problem, load, tuple(nodes), t_end)  # by value: tasks arrive unpickled (new objects)
     if key not in _CACHE:
         P = named_load(load, problem.width, problem.height)
-        model = MembraneModel.from_problem(problem, tuple(nodes))
-        traj = simulate_response(
-            model, P, t_end=t_end, dt=problem.identification.dt, z0=bubble(problem.width, problem.height)
-        )
+        fwd = forward_model(problem, "linear", nodes=tuple(nodes))
+        model, traj = fwd.model, simulate_truth(fwd, P, RecordProtocol(t_end=t_end)).trajectory
         lift = integrate(model.space, P, order=8)
         absl = integrate(model.space, lambda x, y: np.abs(P(x, y)), order=8)
         norm = integrate(model.space, lambda x, y: P(x, y) ** 2, order=8)

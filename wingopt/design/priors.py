@@ -26,7 +26,7 @@ from wingopt.errors import InputError
 from wingopt.fe import Cells
 from wingopt.membrane import MembraneModel, PressureLoad
 
-__all__ = ["LoadPrior", "tikhonov_prior", "gp_prior", "smooth_loads", "edge_loads", "leading_edge_load", "PRIORS"]
+__all__ = ["LoadPrior", "tikhonov_prior", "gp_prior", "smooth_loads", "edge_loads", "leading_edge_suction", "PRIORS"]
 
 PRIORS = ("tikhonov", "gp")
 
@@ -114,7 +114,7 @@ def smooth_loads(
     return out
 
 
-def leading_edge_load(width: float, height: float, amplitude: float = 200.0, decay: float = 0.2) -> PressureLoad:
+def leading_edge_suction(width: float, height: float, amplitude: float = 200.0, decay: float = 0.2) -> PressureLoad:
     """A leading-edge suction peak: ``A exp(-x / (decay W)) sin(pi y / L)`` (largest at x = 0)."""
 
     def pressure(x, y):

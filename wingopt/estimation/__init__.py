@@ -1,20 +1,12 @@
-"""Load identification on the membrane: measurements, noise level, load spaces, estimators.
+"""Load identification on the membrane: noise level, load spaces, estimators and their result.
 
 Estimators share one shape (``setup / step / result``, a one-shot function beside): the
 moving-horizon estimator (:mod:`wingopt.estimation.mhe`) and the seed's joint EKF as a baseline
-(:mod:`wingopt.estimation.jekf`). Simulated protocols and the ``identify`` use case sit above, in
-:mod:`wingopt.workflows`.
+(:mod:`wingopt.estimation.jekf`). What they consume is :class:`wingopt.measurements.Measurements`;
+simulated protocols and the ``identify`` use case sit above, in :mod:`wingopt.workflows`.
 """
 
-from wingopt.estimation.csv_data import read_measurements
-from wingopt.estimation.data import IdentificationResult, Measurements
 from wingopt.estimation.mhe import MHESettings, MovingHorizonEstimator, mhe_identify
+from wingopt.estimation.result import IdentificationResult
 
-__all__ = [
-    "Measurements",
-    "IdentificationResult",
-    "MHESettings",
-    "MovingHorizonEstimator",
-    "mhe_identify",
-    "read_measurements",
-]
+__all__ = ["IdentificationResult", "MHESettings", "MovingHorizonEstimator", "mhe_identify"]

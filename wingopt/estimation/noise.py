@@ -26,7 +26,7 @@ import numpy as np
 
 from wingopt.errors import InputError
 
-__all__ = ["NoiseRule", "MHE_NOISE", "JEKF_NOISE", "estimate_noise_std", "noise_variance"]
+__all__ = ["NoiseRule", "MHE_NOISE", "JEKF_NOISE", "estimate_noise_std", "noise_variance", "resolve_noise_std"]
 
 _MIN_DIFFERENCES = 10
 _VARIANCE_FLOOR = 1e-6  # relative floor of the noise std (noise-free data would give R = 0)
@@ -109,21 +109,46 @@ def estimate_noise_std(
     return out
 
 
+def resolve_noise_std(
+    values: np.ndarray,
+    names: Sequence[str],
+    given=None,
+    measured=None,
+    problem=None,
+    rule: NoiseRule = MHE_NOISE,
+    allow_zero: bool = False,
+) -> tuple[np.ndarray, str]:
+    """The noise std every estimator uses, and where it came from: the one precedence rule.
+
+    ``given`` (an argument, ``--noise-std``) > ``measured`` (what the measurements carry, e.g. a
+    simulation's) > ``problem`` (the problem file's ``identification.noise_std``) > estimated from
+    ``values`` with ``rule``. A value that is not positive and finite is refused in one line
+    (an estimate of zero, noise-free or quantised data, too, unless ``allow_zero``).
+    """
+    p = np.shape(values)[1]
+    for value, source in ((given, "argument"), (measured, "measurements"), (problem, "problem file")):
+        if value is not None:
+            sigma = np.broadcast_to(np.asarray(value, dtype=float), (p,)).copy()
+            if not np.all(np.isfinite(sigma) & (sigma > 0)):
+                raise InputError(f"noise_std = {sigma.tolist()} ({source}): expected positive finite values")
+            return sigma, source
+    sigma = estimate_noise_std(values, rule, names)
+    if np.any(sigma <= 0) and not allow_zero:
+        raise InputError("noise estimate: a sensor looks noise-free (constant or quantised); give noise_std")
+    return sigma, "estimated from the data"
+
+
 def noise_variance(measurements, problem_noise_std=None, rule: NoiseRule = JEKF_NOISE) -> tuple[np.ndarray, str]:
     """Measurement variances ``R_i`` for a record, and where they came from.
 
-    Order: ``measurements.noise_std``, ``problem_noise_std`` (the problem's
-    ``identification.noise_std``), else :func:`estimate_noise_std`. A floor of ``1e-6 max_t |y_i|``
-    keeps ``R > 0`` on noise-free data.
+    The precedence of :func:`resolve_noise_std` (measurements, problem file, estimate); a floor
+    of ``1e-6 max_t |y_i|`` keeps ``R > 0`` on noise-free data.
     """
-    p = measurements.values.shape[1]
-    if measurements.noise_std is not None:
-        std, source = np.broadcast_to(np.asarray(measurements.noise_std, float), (p,)), "measurements.noise_std"
-    elif problem_noise_std is not None:
-        std = np.broadcast_to(np.asarray(problem_noise_std, float), (p,))
-        source = "problem identification.noise_std"
-    else:
-        std = estimate_noise_std(measurements.values, rule, measurements.sensor_names)
+    std, source = resolve_noise_std(
+        measurements.values, measurements.sensor_names, None, measurements.noise_std, problem_noise_std, rule,
+        allow_zero=True,
+    )  # fmt: skip
+    if source == "estimated from the data":
         source = f"estimated (order-{rule.order} differences, {rule.statistic})"
     scale = np.nanmax(np.abs(measurements.values), axis=0)
     floor = _VARIANCE_FLOOR * np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)

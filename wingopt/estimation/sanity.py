@@ -80,7 +80,7 @@ default layout spans 0.57 x 0.51; four sensors in one corner 0.11 x 0.14 gave a 
 
 def as_measurements(data, names: Sequence[str]):
     """A :class:`Measurements` from one, or from an array ``(N, 1 + p)`` of rows ``t, s_1 .. s_p``."""
-    from wingopt.estimation.data import Measurements
+    from wingopt.measurements.series import Measurements
 
     if isinstance(data, Measurements):
         if tuple(data.sensor_names) != tuple(names):

@@ -1,21 +1,19 @@
-"""Membrane wing: FE model, stretch sensors, load cases and simulation (chapter 6).
+"""Membrane wing: FE model, stretch sensors, loads, forward models and simulated records (chapter 6, §8).
 
-Geometrically nonlinear membranes (spec §8): :class:`FvKMembrane` (Föppl–von Kármán, the truth
-generator), :class:`CubicModalMembrane` (FvK's exact cubic stiffness on the lowest modes, fast),
-:class:`BergerMembrane` (uniform tension, fastest). Simulated sensor records from either (the
-truth generator of the studies) are made by :func:`wingopt.workflows.records.simulate_record`.
+* :class:`MembraneModel` (:mod:`.model`): the linear FE operators on one mesh (spec §2);
+* :mod:`.forward`: the forward-model protocol and :func:`forward_model` — linear, Berger and
+  Föppl–von Kármán physics, full order (:mod:`.full`) or modal (:mod:`.modal`);
+* :func:`simulate_truth` (:mod:`.truth`): a simulated record with its truth, from any forward
+  model, load and :class:`RecordProtocol`;
+* loads (:mod:`.loads`), stretch sensors (:mod:`.sensors`), :class:`MembraneParameters`.
 """
 
-from wingopt.membrane.berger import BergerMembrane
-from wingopt.membrane.berger_sim import BergerTrajectory, simulate_berger
-from wingopt.membrane.fvk import FvKMembrane
-from wingopt.membrane.fvk_modal import CubicModalMembrane
-from wingopt.membrane.fvk_sim import simulate_fvk
-from wingopt.membrane.loads import LOAD_CASES, PressureLoad, bubble, load_case
+from wingopt.membrane.forward import PHYSICS, ForwardRecord, MembraneForward, forward_model
+from wingopt.membrane.loads import LOAD_CASES, Gust, PressureLoad, bubble, leading_edge_load, load_case
 from wingopt.membrane.model import MembraneModel, membrane_space
-from wingopt.membrane.nonlinear import AlphaSettings, MembraneParameters
+from wingopt.membrane.parameters import MembraneParameters
 from wingopt.membrane.sensors import StretchSensors, add_noise, noise_std_for
-from wingopt.membrane.simulation import Trajectory, simulate_response
+from wingopt.membrane.truth import RecordProtocol, Trajectory, TruthRecord, relative_l2, simulate_truth
 
 __all__ = [
     "MembraneModel",
@@ -25,16 +23,18 @@ __all__ = [
     "noise_std_for",
     "PressureLoad",
     "load_case",
+    "leading_edge_load",
     "bubble",
+    "Gust",
     "LOAD_CASES",
-    "Trajectory",
-    "simulate_response",
     "MembraneParameters",
-    "AlphaSettings",
-    "FvKMembrane",
-    "simulate_fvk",
-    "CubicModalMembrane",
-    "BergerMembrane",
-    "BergerTrajectory",
-    "simulate_berger",
+    "PHYSICS",
+    "ForwardRecord",
+    "MembraneForward",
+    "forward_model",
+    "RecordProtocol",
+    "Trajectory",
+    "TruthRecord",
+    "simulate_truth",
+    "relative_l2",
 ]

@@ -1,4 +1,8 @@
-"""Pressure loads and initial shapes of the identification protocol (spec §2, eqs. 6.47–6.49)."""
+"""Pressure loads, load histories and initial shapes of the identification protocols.
+
+The seed's load cases (spec §2, eqs. 6.47–6.49) and the leading-edge case ``LE`` by name
+(:func:`load_case`); a 1-cos :class:`Gust` as a load factor over time; the protocol's bubble.
+"""
 
 from __future__ import annotations
 
@@ -9,9 +13,10 @@ import numpy as np
 
 from wingopt.errors import InputError
 
-__all__ = ["PressureLoad", "load_case", "LOAD_CASES", "bubble"]
+__all__ = ["PressureLoad", "load_case", "LOAD_CASES", "bubble", "leading_edge_load", "Gust", "ISSUE_GUST"]
 
-LOAD_CASES = ("L1", "L2", "L3", "consistency")
+LOAD_CASES = ("L1", "L2", "L3", "consistency", "LE")
+"""Load cases by name: the seed's L1–L3 and consistency rectangle, and the leading-edge case LE."""
 
 
 @dataclass(frozen=True)
@@ -58,6 +63,8 @@ def load_case(name: str, width: float, height: float, amplitude: float = 200.0) 
             return np.where(inside, -A, 0.0)
 
         return PressureLoad(name, rect, f"-200 Pa on [{x0}, {x1}] x [{y0}, {y1}]", (x0, x1), (y0, y1))
+    if name == "LE":
+        return leading_edge_load(W, L, A)
     raise InputError(f"load = {name!r}: expected one of {', '.join(LOAD_CASES)}")
 
 
@@ -69,3 +76,49 @@ def bubble(width: float, height: float, peak: float = 0.01) -> Callable[[np.ndar
         return peak * 16.0 * xi * (1 - xi) * eta * (1 - eta)
 
     return shape
+
+
+def leading_edge_load(width: float, height: float, amplitude: float = 200.0) -> PressureLoad:
+    """One-sign load peaking at a quarter chord: ``A (256/27) xi (1 - xi)^3 sin(pi eta)``.
+
+    Its maximum ``A`` is at ``xi = 1/4``; it vanishes on the frame (like L1) and its lift is
+    ``A (256/27)(1/20)(2/pi) W L`` (0.591 N for the default wing and 200 Pa).
+    """
+    W, L, A = width, height, amplitude
+    scale = A * 256.0 / 27.0
+
+    def pressure(x, y):
+        xi = x / W
+        return scale * xi * (1 - xi) ** 3 * np.sin(np.pi * y / L)
+
+    return PressureLoad("LE", pressure, f"{A:g} (256/27) xi (1-xi)^3 sin(pi eta), peak at xi = 1/4")
+
+
+@dataclass(frozen=True)
+class Gust:
+    """Load factor ``1 + amplitude (1 - cos(2 pi (t - start)/duration))`` on ``[start, start + duration]``.
+
+    The default peaks at +60 % of the steady load 0.1 s after the start.
+    """
+
+    start: float = 0.3
+    duration: float = 0.2
+    amplitude: float = 0.3
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.start) and self.start >= 0):
+            raise InputError(f"gust start = {self.start!r}: expected a time >= 0 (s)")
+        if not (np.isfinite(self.duration) and self.duration > 0):
+            raise InputError(f"gust duration = {self.duration!r}: expected a positive duration (s)")
+        if not np.isfinite(self.amplitude):
+            raise InputError(f"gust amplitude = {self.amplitude!r}: expected a finite number")
+
+    def factor(self, t):
+        t = np.asarray(t, dtype=float)
+        s = (t - self.start) / self.duration
+        inside = (s >= 0) & (s <= 1)
+        return np.where(inside, 1.0 + self.amplitude * (1.0 - np.cos(2 * np.pi * s)), 1.0)
+
+
+ISSUE_GUST = Gust(start=0.4, duration=0.2, amplitude=0.3)
+"""The gust of the mismatch study: 1-cos, +60 % over 0.2 s, starting at 0.4 s (after the bubble's transient)."""

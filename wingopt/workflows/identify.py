@@ -1,8 +1,12 @@
 """Identify the membrane load from one record: the ``wingopt identify`` engine, as a Python API.
 
-``identify(problem, load="L1", noise=0.01)`` simulates the protocol (truth on a finer mesh) and
-runs an estimator; ``identify(problem, data="run.csv")`` reads a measured record instead. The
-returned :class:`IdentifyRun` holds the estimate, the truth when known, and a spec §7
+``identify(problem, load="L1", noise_percent=1)`` simulates the protocol (truth on a finer mesh)
+and runs an estimator; ``identify(problem, data="run.csv")`` reads a measured record instead. The
+estimator is a pair of the registry (:mod:`wingopt.estimation.registry`): a method and the membrane
+physics it assumes, ``auto`` by default (the FvK whole-record estimator on measured data and on
+nonlinear truth, the seed's linear MHE on the seed's linear protocol). Options
+(:class:`~wingopt.estimation.options.IdentifyOptions`) the chosen pair does not use are refused.
+The returned :class:`IdentifyRun` holds the estimate, the truth when known, and a spec §7
 :meth:`~IdentifyRun.summary`; :func:`write_identify_outputs` writes ``summary.json``,
 ``load.csv``, ``lift.csv`` and figures atomically.
 
@@ -13,7 +17,6 @@ Stretch sensors cannot see the sign of the load: ``initial_load`` (default: the 
 from __future__ import annotations
 
 import dataclasses
-import functools
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,47 +27,21 @@ import numpy as np
 from wingopt import resources
 from wingopt.errors import InputError
 from wingopt.estimation import sanity
-from wingopt.estimation.data import IdentificationResult, Measurements
-from wingopt.estimation.lambda_rules import resolve as resolve_rule
-from wingopt.membrane import MembraneModel
+from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
+from wingopt.estimation.options import IdentifyOptions
+from wingopt.estimation.registry import check_options, resolve
+from wingopt.estimation.result import IdentificationResult
+from wingopt.estimation.runners import run_record
+from wingopt.measurements import Measurements, read_measurements
+from wingopt.membrane import MembraneModel, TruthRecord
+from wingopt.problem import load_problem
 from wingopt.results import ResultDirectory, write_csv, write_json
 from wingopt.validate import check_seed
 from wingopt.values import LambdaChoice, NoiseLevel
-from wingopt.workflows.protocols import TRUTH_NODES, SimulatedCase
+from wingopt.workflows.protocols import TRUTH_NODES, TRUTHS, simulate_case
+from wingopt.workflows.studies import evaluate, load_field, protocol_sign
 
-__all__ = [
-    "METHODS",
-    "METHOD_ALIASES",
-    "MODELS",
-    "TRUTHS",
-    "IdentifyRun",
-    "identify",
-    "model_form_band",
-    "write_identify_outputs",
-    "LOAD_GRID",
-]
-
-METHODS = ("mhe", "jekf-seed", "jekf-tuned")
-"""``mhe``: moving-horizon estimator; ``jekf-seed``: the seed's filter (200 Pa prior, ``R = 1e-4``,
-lambda tuned on the noise-free truth as the seed did); ``jekf-tuned``: zero initial load, lambda
-from the data. The same names as ``wingopt compare`` and :mod:`wingopt.workflows.studies`."""
-
-METHOD_ALIASES = {"jekf": "jekf-seed"}
-"""Older names still accepted (``--method jekf`` was the seed's filter before the names were unified)."""
-
-MODELS = ("auto", "linear", "nonlinear", "fvk")
-"""Membrane model of the ``mhe`` method: ``linear`` = the seed protocol's moving-horizon estimator
-(unchanged; an adequacy check is added to its result); ``fvk`` = the realistic estimator
-(:mod:`wingopt.estimation.realistic`: prestrains and damping identified, gusts followed, misfit
-flag) with the cubic modal Föppl–von Kármán membrane; ``nonlinear`` = the same estimator with the
-Berger (uniform-tension) membrane. ``auto`` (default) = ``fvk`` on measured data and on simulated
-FvK truth (measured on FvK truth: lift within 1.5 % of ∫|P| where the linear MHE is 9–79 % off,
-docs/estimation_realistic.md; inside it the data choose between the nonlinear and the linear
-membrane), ``nonlinear`` on simulated Berger truth, ``linear`` on the seed's simulated linear
-protocol (unchanged)."""
-
-TRUTHS = ("linear", "berger", "fvk")
-"""Simulated truth membranes (``load=``): the seed's linear model, Berger, Föppl–von Kármán."""
+__all__ = ["IdentifyRun", "identify", "write_identify_outputs", "LOAD_GRID"]
 
 LOAD_GRID = (57, 29)
 """Points (x, y) of the uniform grid of ``load.csv``, edges included."""
@@ -80,15 +57,13 @@ class IdentifyRun:
     measurements: Measurements
     result: IdentificationResult
     wall_s: float
-    case: SimulatedCase | None = None
+    case: TruthRecord | None = None
     data_report: dict | None = None
     protocol: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
 
     def load_field(self, k: int = -1):
         """Callable ``(x, y) -> P`` of the estimated pressure at sample ``k`` (Pa)."""
-        from wingopt.workflows.studies import load_field
-
         return load_field(self.result, self.model, k)
 
     @property
@@ -99,8 +74,6 @@ class IdentifyRun:
         """Final relative L2 errors against the truth (simulated records only)."""
         if self.case is None:
             return {}
-        from wingopt.workflows.studies import evaluate
-
         rec = evaluate(self.case, self.result, self.model, self.method)
         return {
             "load_error": rec.load_error,
@@ -148,35 +121,44 @@ class IdentifyRun:
 def _with_noise_std(meas: Measurements, std: float | None) -> Measurements:
     if std is None:
         return dataclasses.replace(meas, noise_std=None)
-    if not (np.isfinite(std) and std > 0):
-        raise InputError(f"noise_std = {std!r}: expected a positive number (sensor output units)")
     return dataclasses.replace(meas, noise_std=np.full(len(meas.sensor_names), float(std)))
+
+
+def _options(options, **legacy) -> IdentifyOptions:
+    """``options`` with the keyword arguments that name an option folded in (each given once)."""
+    opts = options if options is not None else IdentifyOptions()
+    if not isinstance(opts, IdentifyOptions):
+        raise InputError(f"options = {type(opts).__name__}: expected wingopt.estimation.options.IdentifyOptions")
+    extra = {k: v for k, v in legacy.items() if v is not None}
+    both = sorted(set(extra) & set(opts.given))
+    if both:
+        raise InputError(f"{both[0]}: given both as an argument and in options; give it once")
+    return opts.replace(**extra) if extra else opts
 
 
 def identify(
     problem,
     *,
     load: str | None = None,
-    noise: float = 0.01,
+    noise_percent: float = 1.0,
     seed: int = 0,
-    data: str | Path | None = None,
-    method: str = "mhe",
+    data: str | Path | Measurements | np.ndarray | None = None,
+    method: str = "auto",
+    model: str = "auto",
+    options: IdentifyOptions | None = None,
     truth_nodes: tuple[int, int] | None = TRUTH_NODES,
     t_end: float = 1.0,
     nodes: tuple[int, int] | None = None,
-    initial_load: float | None = None,
-    noise_std: float | None = None,
-    mhe_settings=None,
-    jekf_modes: int | None = None,
-    lam: LambdaChoice | None = None,
-    max_memory: float | None = None,
-    model: str = "auto",
     truth: str = "linear",
     truth_prestrain: tuple[float, float] | None = None,
     truth_damping: float = 1.0,
     gust=None,
-    realistic_settings=None,
-    model_form: bool = True,
+    max_memory: float | None = None,
+    settings=None,
+    initial_load: float | None = None,
+    noise_std: float | None = None,
+    lam: LambdaChoice | None = None,
+    noise: float | None = None,
 ) -> IdentifyRun:
     """Estimate the load of a membrane problem from a simulated (``load``) or measured (``data``) record.
 
@@ -184,119 +166,90 @@ def identify(
     ----------
     problem : MembraneProblem or str
         From :func:`wingopt.problem.load_problem`, or a built-in name / path to load.
-    load : {"L1", "L2", "L3", "consistency"}, optional
+    load : {"L1", "L2", "L3", "consistency", "LE"}, optional
         Simulate the protocol with this load (truth on ``truth_nodes``; ``None`` there means the
         seed's same-mesh protocol).
-    noise : float
-        Simulated noise as a FRACTION of each sensor's peak output (0.01 = 1 %).
+    noise_percent : float
+        Simulated noise in PERCENT of each sensor's peak output (1 = 1 %), as ``--noise``.
     seed : int
         Noise seed.
     data : path, Measurements or array, optional
         Measured record instead of ``load``: a CSV file (``t`` column + one column per sensor), a
         :class:`Measurements`, or an array ``(N, 1 + p)`` of rows ``t, s_1 .. s_p`` (problem's sensor order).
-    method : {"mhe", "jekf-seed", "jekf-tuned"}
-        Estimator (``"jekf"`` is accepted for ``"jekf-seed"``).
+    method, model : str
+        The estimator and the membrane it assumes (:data:`wingopt.estimation.registry.METHODS`,
+        :data:`~wingopt.estimation.registry.MODELS`); ``auto``: see the module docstring.
+    options : IdentifyOptions, optional
+        Window, lambda, modes, load model, ... Options the chosen estimator does not use are
+        refused (``InputError`` naming the option and the estimator).
     nodes : (int, int), optional
         Estimator mesh (default: the problem's).
-    initial_load : float, optional
-        Sign prior (Pa). Default: the problem's ``initial_load`` with the protocol's sign.
-    noise_std : float, optional
-        Sensor noise std, when known; default: estimated from the data. The protocol does not
-        tell the estimators the simulated noise level.
-    mhe_settings : MHESettings, optional
+    truth : {"linear", "berger", "fvk"}
+        Simulated truth physics (full order); ``truth_prestrain`` ``(ex, ey)``, ``truth_damping``
+        (factor) and ``gust`` (:class:`~wingopt.membrane.Gust`) put it off the problem file.
     max_memory : float, optional
         Refuse (``InputError``, before any work) a run estimated to need more bytes than this
         (default: the memory the machine has available); see :mod:`wingopt.resources`.
-    jekf_modes : int, optional
-        Modes kept by the JEKF (default all: exact; 60 is ~20x faster with the same final errors
-        to 4 digits on L1–L3, measured).
-    model : {"auto", "linear", "nonlinear", "fvk"}
-        See :data:`MODELS`.
-    truth : {"linear", "berger", "fvk"}
-        Simulated truth: the seed's linear membrane, a Berger membrane
-        (:func:`wingopt.workflows.realistic_truth.berger_case`) or the Föppl–von Kármán membrane
-        (:func:`wingopt.workflows.realistic_truth.fvk_case`, the high-fidelity one); ``truth_prestrain``
-        ``(ex, ey)``, ``truth_damping`` (factor) and ``gust``
-        (:class:`~wingopt.workflows.realistic_truth.Gust`) put the truth off the problem file.
-    realistic_settings : RealisticSettings, optional
-    lam : LambdaChoice, optional
-        A fixed lambda or a rule of :mod:`wingopt.estimation.lambda_rules` for ``method``; default:
-        the method's own (for the MHE, what ``mhe_settings`` says).
-
-    model_form : bool
-        When the linear MHE's result is flagged inadequate, also run the realistic FvK estimator on the
-        same data and widen the band by the distance between the two lifts (a model-form term).
+    settings : MHESettings or RealisticSettings, optional
+        Advanced: the estimator's settings to start from (the options are applied on top).
+    initial_load, noise_std, lam :
+        Shorthands for the same fields of ``options``: the sign prior (Pa), the sensor noise std
+        (sensor units; default: estimated from the data) and the lambda choice.
+    noise : float, optional
+        No longer accepted (it was a fraction): give ``noise_percent``.
 
     Returns
     -------
     IdentifyRun
         The estimate, the measurements, the truth (simulated records) and the summary.
     """
-    from wingopt.estimation.csv_data import read_measurements
-    from wingopt.workflows.studies import CleanCases, protocol_sign, run_method
-
+    if noise is not None:
+        raise InputError(
+            f"noise = {noise!r}: the noise is given in percent as noise_percent (noise_percent=1 is 1 %, "
+            f"as wingopt identify --noise 1)"
+        )
     if isinstance(problem, (str, Path)):
-        from wingopt.problem import load_problem
-
         problem = load_problem(problem)
     if getattr(problem, "kind", None) != "membrane":
         raise InputError(f"problem: identify needs a membrane problem, got kind {getattr(problem, 'kind', None)!r}")
-    method = METHOD_ALIASES.get(method, method)
-    if method not in METHODS:
-        raise InputError(f"method = {method!r}: expected one of {', '.join(METHODS)} (alias: jekf = jekf-seed)")
     if not problem.sensors:
         raise InputError(f"problem {problem.name!r}: no [[sensors]]: identification needs stretch sensors")
     check_seed(seed)
-    if initial_load is not None and not (np.isfinite(initial_load) and initial_load != 0):
-        raise InputError(
-            f"initial_load = {initial_load!r}: expected a non-zero pressure (Pa); its sign fixes the load's"
-        )
-    if model not in MODELS:
-        raise InputError(f"model = {model!r}: expected one of {', '.join(MODELS)}")
     if truth not in TRUTHS:
         raise InputError(f"truth = {truth!r}: expected one of {', '.join(TRUTHS)}")
     if (load is None) == (data is None):
         raise InputError("identify: give exactly one of load= (simulated protocol) or data= (measured CSV)")
-    mhe_settings, extra = _lambda_options(method, lam, mhe_settings)
+    opts = _options(options, initial_load=initial_load, noise_std=noise_std, lam=lam)
+    spec = resolve(method, model, simulated=truth if load is not None else None)
+    check_options(spec, opts)
+    if settings is not None and spec.method not in ("mhe", "batch"):
+        raise InputError(f"settings: the {spec.label} takes no settings object")
     if nodes is not None:
         problem = problem.with_mesh(nodes)
     samples, truth_mesh = 1, None
     if load is not None:
-        noise = NoiseLevel(noise).fraction
+        fraction = NoiseLevel.from_percent(noise_percent).fraction
         if not (np.isfinite(t_end) and t_end > 0):
             raise InputError(f"t_end = {t_end!r}: expected a positive duration (s)")
         sanity.check_duration(t_end, problem.identification.dt)
         samples, truth_mesh = int(round(t_end / problem.identification.dt)) + 1, truth_nodes or problem.nodes
     resources.check(
-        resources.estimate_identify(problem.nodes, samples, truth_nodes=truth_mesh, method=method), max_memory
+        resources.estimate_identify(problem.nodes, samples, truth_nodes=truth_mesh, method=spec.method), max_memory
     )
     membrane = MembraneModel.from_problem(problem)
     case, report, protocol = None, None, {}
-    off_file = truth != "linear" or truth_prestrain is not None or truth_damping != 1.0 or gust is not None
     if load is not None:
-        if off_file or load == "LE":
-            from wingopt.workflows.realistic_truth import berger_case, fvk_case
-
-            simulate = fvk_case if truth == "fvk" else functools.partial(berger_case, nonlinear=truth == "berger")
-            case = simulate(
-                problem,
-                load,
-                noise,
-                seed,
-                truth_prestrain,
-                truth_damping,
-                gust,
-                nodes=tuple(truth_nodes or problem.nodes),
-                t_end=t_end,
-            )
-        else:
-            case = CleanCases(problem, truth_nodes, t_end).case(load, noise, seed)
-        meas = _with_noise_std(case.measurements, noise_std)
-        if initial_load is None:
-            initial_load = protocol_sign(load) * abs(problem.identification.initial_load)
+        case = simulate_case(
+            problem, load, fraction, seed, truth_nodes, t_end,
+            truth=truth, prestrain=truth_prestrain, damping=truth_damping, gust=gust, tell_noise=False,
+        )  # fmt: skip
+        meas = _with_noise_std(case.measurements, opts.noise_std)
+        if opts.initial_load is None:
+            opts = opts.replace(initial_load=protocol_sign(load) * abs(problem.identification.initial_load))
+        off_file = truth != "linear" or truth_prestrain is not None or truth_damping != 1.0 or gust is not None
         protocol = {
             "load_case": load,
-            "noise_percent": 100 * noise,
+            "noise_percent": 100 * fraction,
             "seed": seed,
             "truth_mesh": list(truth_nodes or problem.nodes),
             "protocol": "same-mesh (seed)" if truth_nodes is None else "fine-mesh truth",
@@ -310,88 +263,24 @@ def identify(
             raise InputError(f"data = {str(data)!r}: is a directory, expected a CSV file")
         meas, csv_report = read_measurements(data, problem.sensor_names)
         report = csv_report.as_dict()
-        meas = _with_noise_std(meas, noise_std)
+        meas = _with_noise_std(meas, opts.noise_std)
     else:
-        meas = _with_noise_std(sanity.as_measurements(data, problem.sensor_names), noise_std)
+        meas = _with_noise_std(sanity.as_measurements(data, problem.sensor_names), opts.noise_std)
     if load is None:
-        resources.check(resources.estimate_identify(problem.nodes, meas.count, method=method), max_memory)
-    prior = initial_load if initial_load is not None else problem.identification.initial_load
+        resources.check(resources.estimate_identify(problem.nodes, meas.count, method=spec.method), max_memory)
+    prior = opts.initial_load if opts.initial_load is not None else problem.identification.initial_load
     warnings = sanity.record_checks(membrane, meas, prior)
-    if model == "auto":
-        model = _auto_model(method, load, truth)
-    if model == "fvk":
-        from wingopt.estimation.realistic import RealisticSettings
-
-        realistic_settings = (realistic_settings or RealisticSettings()).replace(membrane_model="fvk")
-        model = "nonlinear"
-    if model == "nonlinear" and method != "mhe":
-        raise InputError(f"model = nonlinear: only with method mhe (got {method!r})")
-    if method != "mhe" and jekf_modes is not None:
-        extra["modes"] = jekf_modes
     t0 = time.perf_counter()
-    if model == "nonlinear":
-        from wingopt.estimation.realistic import realistic_identify
-
-        result = realistic_identify(membrane, meas, realistic_settings, initial_load=initial_load)
-    else:
-        result = run_method(method, membrane, meas, mhe_settings, initial_load=initial_load, truth=case, **extra)
-        if method == "mhe":
-            from wingopt.estimation.realistic.mhe_check import check_mhe_result
-
-            result = check_mhe_result(membrane, meas, result)
-            if result.info.get("model_adequate") is False and model_form:
-                result = model_form_band(membrane, meas, result, initial_load)
+    result = run_record(spec, membrane, meas, opts, truth=case, settings=settings)
     wall = time.perf_counter() - t0
     warnings += sanity.fit_checks(membrane, meas, result, sanity_sigma(meas, result))
     warnings += [w for w in result.info.get("warnings", []) if w not in warnings]  # the estimator's adequacy
-    return IdentifyRun(problem, membrane, method, meas, result, wall, case, report, protocol, warnings)
-
-
-def model_form_band(membrane, meas: Measurements, result, initial_load):
-    """Widen a flagged linear-MHE band by its distance to the realistic FvK estimate of the same data.
-
-    The misfit inflation of :func:`check_mhe_result` cannot cover a bias it does not see: on a
-    stiffening membrane the steady data after the left-out start fit a wrong load well. The
-    distance to the estimate of a model that explains the whole record, plus that estimate's own
-    1-sigma band, is a model-form uncertainty: added in quadrature, the band reaches the far side of
-    the alternative's band (``info["model_form"]``). The estimate is unchanged. (The distance alone
-    left the FvK truth L2 and L3 records uncovered by the FvK estimate's own error.)
-    """
-    from wingopt.estimation.realistic import RealisticSettings, realistic_identify
-
-    alt = realistic_identify(membrane, meas, RealisticSettings(membrane_model="fvk"), initial_load=initial_load)
-    diff = float(result.lift[-1] - alt.lift[-1])
-    alt_std = 0.0 if alt.lift_std is None else float(alt.lift_std[-1])
-    own = np.zeros_like(result.lift) if result.lift_std is None else np.asarray(result.lift_std, dtype=float)
-    std = np.sqrt(own**2 + (abs(diff) + alt_std) ** 2)
-    info = dict(result.info)
-    info["model_form"] = {
-        "alternative": alt.info.get("model", "realistic (FvK)"),
-        "alternative_lift_N": float(alt.lift[-1]),
-        "alternative_lift_std_N": None if alt.lift_std is None else float(alt.lift_std[-1]),
-        "alternative_adequate": alt.info.get("model_adequate"),
-        "difference_N": diff,
-    }
-    info["warnings"] = list(info.get("warnings", [])) + [
-        f"model-form uncertainty: the realistic estimator (FvK membrane) gives {alt.lift[-1]:.4g} N on the same "
-        f"data (± {alt_std:.3g} N), {diff:+.3g} N from this estimate; the band reaches across that estimate's band"
-    ]
-    return dataclasses.replace(result, lift_std=std, info=info)
-
-
-def _auto_model(method: str, load: str | None, truth: str) -> str:
-    """The ``auto`` membrane model: see :data:`MODELS`."""
-    if method != "mhe":
-        return "linear"
-    if load is None or truth == "fvk":
-        return "fvk"
-    return "nonlinear" if truth == "berger" else "linear"
+    protocol["estimator"] = {"method": spec.method, "membrane": spec.model, "options": opts.as_dict()}
+    return IdentifyRun(problem, membrane, spec.method, meas, result, wall, case, report, protocol, warnings)
 
 
 def sanity_sigma(meas: Measurements, result: IdentificationResult):
     """The noise std the estimator used (or the data's own estimate) for the fit check."""
-    from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
-
     sigma = result.info.get("noise_std", meas.noise_std)
     if sigma is None:
         try:
@@ -399,24 +288,6 @@ def sanity_sigma(meas: Measurements, result: IdentificationResult):
         except InputError:
             return None
     return np.asarray(sigma, dtype=float)
-
-
-def _lambda_options(method: str, lam: LambdaChoice | None, mhe_settings):
-    """``(mhe_settings, jekf keyword arguments)`` carrying the lambda choice to ``method``."""
-    if lam is None:
-        return mhe_settings, {}
-    if method == "mhe":
-        from wingopt.estimation.mhe import MHESettings
-
-        base = mhe_settings or MHESettings()
-        if lam.is_fixed:
-            return base.replace(regularization=lam.value), {}
-        return base.replace(regularization=None, lambda_rule=resolve_rule(lam.rule, "mhe").internal), {}
-    if lam.is_fixed:
-        return mhe_settings, {"regularization": lam.value}
-    estimator = "jekf" if method == "jekf-tuned" else "jekf-seed"
-    spec = resolve_rule(lam.rule, estimator)
-    return mhe_settings, ({"rule": spec.internal} if estimator == "jekf" else {})
 
 
 def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = True) -> Path:

@@ -25,17 +25,11 @@ import numpy as np
 
 from wingopt.errors import DataFileError, InputError
 
-__all__ = ["COLUMNS", "STREAM_MODELS", "LatencyStats", "check_stream_model", "follow"]
+__all__ = ["COLUMNS", "LatencyStats", "follow"]
 
 log = logging.getLogger(__name__)
 
 COLUMNS = ("t", "lift_N", "lift_std_N", "chi2_per_datum", "adequate", "phase")
-
-STREAM_MODELS = ("auto", "fvk", "linear", "nonlinear")
-"""``auto``/``fvk``: the cubic modal FvK stream (an extended Kalman filter on the batch default's
-model; as ``identify --data``, the model that is right on a real membrane: on FvK truth L1 the
-linear stream ends -10.9 % ± 0.5 % and the Berger stream +12.1 % ± 1.9 %, both "adequate", the FvK
-stream -0.9 % ± 1.8 %); ``linear``: the linear MHE stream; ``nonlinear``: the Berger stream."""
 
 
 class LatencyStats:
@@ -119,21 +113,13 @@ class _Lines:
             raise DataFileError(f"{self.path or '<stdin>'}: not a text (UTF-8) CSV stream") from None
 
 
-def check_stream_model(model: str) -> None:
-    """Raise :class:`InputError` unless ``model`` is one of :data:`STREAM_MODELS`."""
-    if model not in STREAM_MODELS:
-        raise InputError(f"model = {model!r}: expected one of {', '.join(STREAM_MODELS)} for a stream")
-
-
 def follow(
     problem,
     out: str | Path,
     *,
     source: str | None = None,
-    model: str = "auto",
-    mhe_settings=None,
-    noise_std: float | None = None,
-    initial_load: float | None = None,
+    spec=None,
+    options=None,
     poll: float = 0.05,
     idle_timeout: float | None = None,
     stop: dict | None = None,
@@ -149,12 +135,12 @@ def follow(
         Output directory, replaced atomically at the end (``lift.csv``, ``summary.json``).
     source : str, optional
         A CSV file that grows; ``None`` reads standard input.
-    model : {"auto", "fvk", "linear", "nonlinear"}
-        See :data:`STREAM_MODELS`.
-    mhe_settings : MHESettings, optional
-        Settings of the linear stream's batch start-up.
-    noise_std, initial_load : float, optional
-        Sensor noise std when known; sign prior (Pa).
+    spec : EstimatorSpec, optional
+        A streaming estimator of :mod:`wingopt.estimation.registry` (default: ``resolve(stream=True)``,
+        the FvK extended Kalman filter: on FvK truth L1 the linear stream ends -10.9 % ± 0.5 % and the
+        Berger stream +12.1 % ± 1.9 %, both "adequate", the FvK stream -0.9 % ± 1.8 %).
+    options : IdentifyOptions, optional
+        Its options (noise std, sign prior, ...); those it does not use are refused.
     poll, idle_timeout : float
         Sleep at the end of a file; stop after this many seconds without a new line.
     stop : dict, optional
@@ -167,24 +153,20 @@ def follow(
     dict
         ``samples``, ``lift_N``, ``lift_std_N``, ``stopped``, ``latency``, ``warnings``, ...
     """
-    from wingopt.estimation.csv_stream import CsvRowParser
-    from wingopt.estimation.streaming import StreamingEstimator, StreamSettings
+    from wingopt.estimation.options import IdentifyOptions
+    from wingopt.estimation.registry import check_options, resolve
+    from wingopt.estimation.runners import build_stream
+    from wingopt.measurements.csv_stream import CsvRowParser
     from wingopt.membrane import MembraneModel
     from wingopt.results import ResultDirectory, to_jsonable, write_json
     from wingopt.results.live import LiveCsv
 
-    check_stream_model(model)
+    spec = resolve(stream=True) if spec is None else spec
+    options = IdentifyOptions() if options is None else options
+    check_options(spec, options)
     stop = {} if stop is None else stop
-    membrane = MembraneModel.from_problem(problem)
-    if model in ("auto", "fvk", "nonlinear"):
-        from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator, NonlinearStreamSettings
-
-        settings = NonlinearStreamSettings(membrane_model="berger" if model == "nonlinear" else "fvk")
-        est = NonlinearStreamingEstimator(membrane, settings, noise_std=noise_std, initial_load=initial_load)
-        method = "nonlinear-stream"
-    else:
-        est = StreamingEstimator(membrane, StreamSettings(mhe=mhe_settings), noise_std, initial_load)
-        method = "mhe-stream"
+    est = build_stream(spec, MembraneModel.from_problem(problem), options)
+    method = f"{spec.method}-stream"
     name = source or "<stdin>"
     parser = CsvRowParser(problem.sensor_names, name)
     cpu, wall = LatencyStats(), LatencyStats()
@@ -221,6 +203,8 @@ def follow(
             lines.reason = f"bad input: {exc}"
         summary = _summary(est, parser, lines.reason, cpu, wall, bad, first_bad, name, problem, live.rows)
         summary["method"] = method
+        summary["membrane"] = spec.model
+        summary["options"] = options.as_dict()
         summary["wall_s"] = time.perf_counter() - t_start
         write_json(tmp / "summary.json", to_jsonable(summary))
     if failure is not None:

@@ -21,12 +21,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.data import IdentificationResult, Measurements
 from wingopt.estimation.mhe import MHESettings, mhe_identify
+from wingopt.estimation.result import IdentificationResult
 from wingopt.fe import integrate
-from wingopt.membrane import MembraneModel, add_noise
+from wingopt.measurements.series import Measurements
+from wingopt.membrane import MembraneModel, TruthRecord
 from wingopt.problem.membrane import MembraneProblem, StretchSensorSpec
-from wingopt.workflows.protocols import TRUTH_NODES, SimulatedCase, simulate_case
+from wingopt.workflows.protocols import TRUTH_NODES, simulate_case
 
 __all__ = [
     "CaseRecord",
@@ -84,32 +85,25 @@ class CleanCases:
         self.problem, self.truth_nodes, self.t_end = problem, truth_nodes, t_end
         # By default the estimators are not told the simulated noise level (they estimate it).
         self.tell_noise = tell_noise
-        self._clean: dict[str, SimulatedCase] = {}
+        self._clean: dict[str, TruthRecord] = {}
 
-    def clean(self, load: str) -> SimulatedCase:
+    def clean(self, load: str) -> TruthRecord:
         if load not in self._clean:
             self._clean[load] = simulate_case(self.problem, load, 0.0, None, self.truth_nodes, self.t_end)
         return self._clean[load]
 
-    def case(self, load: str, noise: float, seed: int) -> SimulatedCase:
+    def case(self, load: str, noise: float, seed: int) -> TruthRecord:
         """The protocol case with noise ``noise`` (fraction) and ``seed``; same as ``simulate_case``."""
         return noisy_case(self.clean(load), noise, seed, self.tell_noise)
 
 
-def noisy_case(clean: SimulatedCase, noise: float, seed: int, tell_noise: bool = False) -> SimulatedCase:
+def noisy_case(clean: TruthRecord, noise: float, seed: int, tell_noise: bool = False) -> TruthRecord:
     """``clean`` (a noise-free protocol run) with noise ``noise`` (fraction) drawn from ``seed``.
 
     Same as :func:`~wingopt.workflows.protocols.simulate_case` with that noise; ``tell_noise``
     passes the noise level on to the estimators (by default they estimate it from the data).
     """
-    noisy, sigma = add_noise(clean.trajectory.outputs, noise, seed)
-    meas = dataclasses.replace(
-        clean.measurements,
-        values=noisy,
-        noise_std=sigma if tell_noise else None,
-        source=clean.measurements.source.replace("0% seed None", f"{100 * noise:g}% seed {seed}"),
-    )
-    return dataclasses.replace(clean, measurements=meas, noise_fraction=noise, seed=seed)
+    return clean.with_noise(noise, seed, tell_noise)
 
 
 def load_field(result: IdentificationResult, model: MembraneModel, k: int = -1) -> Callable:
@@ -151,7 +145,7 @@ class CaseRecord:
         return dataclasses.asdict(self)
 
 
-def evaluate(case: SimulatedCase, result: IdentificationResult, model: MembraneModel, method: str) -> CaseRecord:
+def evaluate(case: TruthRecord, result: IdentificationResult, model: MembraneModel, method: str) -> CaseRecord:
     """Final load/deflection errors (relative L2 over the membrane), lift error and sign of a result.
 
     The lift error is ``|lift - true lift| / ∫|P|`` (L2 has no net lift). The sign is right when
@@ -193,7 +187,7 @@ def run_method(
     measurements: Measurements,
     mhe_settings: MHESettings | None = None,
     initial_load: float | None = None,
-    truth: SimulatedCase | None = None,
+    truth: TruthRecord | None = None,
     **kwargs,
 ) -> IdentificationResult:
     """Run ``mhe``, ``jekf-seed`` (the seed's filter, lambda tuned on the noise-free truth as in the
@@ -213,7 +207,7 @@ def run_method(
 
 
 def oracle_lambda(
-    case: SimulatedCase, model: MembraneModel, settings: MHESettings, grid: Sequence[float], initial_load=None
+    case: TruthRecord, model: MembraneModel, settings: MHESettings, grid: Sequence[float], initial_load=None
 ) -> tuple[float, float, list[tuple[float, float]]]:
     """The lambda of ``grid`` with the least final MHE load error *given the truth* (studies only)."""
     errs = []

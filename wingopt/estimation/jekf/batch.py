@@ -10,8 +10,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.data import IdentificationResult, Measurements
 from wingopt.estimation.noise import JEKF_NOISE, noise_variance
+from wingopt.estimation.result import IdentificationResult
+from wingopt.measurements.series import Measurements
 
 if TYPE_CHECKING:
     from wingopt.estimation.jekf.filter import JointEKF

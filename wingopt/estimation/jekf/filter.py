@@ -35,11 +35,12 @@ from scipy.linalg.blas import dgemm
 
 from wingopt.dynamics import zoh
 from wingopt.errors import InputError, SolverError
-from wingopt.estimation.data import IdentificationResult, Measurements
 from wingopt.estimation.jekf.batch import filter_record
 from wingopt.estimation.jekf.prior import JointPrior
 from wingopt.estimation.jekf.settings import JEKFSettings, _as_positive
 from wingopt.estimation.jekf.transition import _first_order, _joint, _modal_blocks, joint_transition
+from wingopt.estimation.result import IdentificationResult
+from wingopt.measurements.series import Measurements
 from wingopt.membrane.model import MembraneModel
 
 __all__ = ["JEKFSettings", "JointEKF", "joint_transition"]

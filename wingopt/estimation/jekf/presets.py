@@ -17,11 +17,12 @@ from typing import Any
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.data import IdentificationResult, Measurements
 from wingopt.estimation.jekf.filter import JointEKF
 from wingopt.estimation.jekf.seed_lambda import LambdaSearch, _as_lambda, seed_lambda
 from wingopt.estimation.jekf.settings import JEKFSettings
 from wingopt.estimation.jekf.tuning import tuned_identify
+from wingopt.estimation.result import IdentificationResult
+from wingopt.measurements.series import Measurements
 from wingopt.membrane.model import MembraneModel
 
 __all__ = ["jekf_identify", "VARIANTS", "DEFAULT_SEED_LAMBDA", "identify", "cached_seed_lambda", "noise_free"]
@@ -40,7 +41,7 @@ _SEED_CACHE: dict[Any, LambdaSearch] = {}
 
 
 def noise_free(case):
-    """The noise-free twin of a :class:`~wingopt.workflows.protocols.SimulatedCase` (same truth)."""
+    """The noise-free twin of a :class:`~wingopt.membrane.TruthRecord` (same truth)."""
     meas = Measurements(
         t=case.trajectory.t,
         values=case.trajectory.outputs,
@@ -80,7 +81,7 @@ def identify(
         bubble); ``lambda`` from :func:`seed_lambda` on the noise-free twin of ``truth`` (USES THE
         TRUTH, as the seed did), or :data:`DEFAULT_SEED_LAMBDA` without a truth.
         ``"tuned"``: zero initial load, ``R`` from the data, ``lambda`` by the data-only ``rule``.
-    truth : SimulatedCase, optional
+    truth : TruthRecord, optional
         The simulated case (only the seed variant uses it, and only to tune ``lambda``).
     initial_load : float, optional
         Signed prior pressure (Pa): the seed's uniform prior mean, and for both variants the sign

@@ -78,7 +78,7 @@ def seed_lambda(
     ----------
     model : MembraneModel
         Estimator model.
-    case : SimulatedCase
+    case : TruthRecord
         A simulated record with its truth (normally noise-free).
     settings : JEKFSettings, optional
         Filter settings (default :meth:`JEKFSettings.seed`); ``regularization`` is searched.

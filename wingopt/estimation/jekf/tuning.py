@@ -44,10 +44,11 @@ import numpy as np
 from scipy.stats import chi2
 
 from wingopt.errors import InputError
-from wingopt.estimation.data import IdentificationResult, Measurements
 from wingopt.estimation.jekf.filter import JointEKF
 from wingopt.estimation.jekf.settings import JEKFSettings
 from wingopt.estimation.noise import JEKF_NOISE, noise_variance
+from wingopt.estimation.result import IdentificationResult
+from wingopt.measurements.series import Measurements
 from wingopt.membrane.model import MembraneModel
 
 __all__ = ["DEFAULT_GRID", "LAMBDA_RULES", "LambdaSelection", "select_lambda", "tuned_identify"]

@@ -46,7 +46,6 @@ from typing import Any
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.data import IdentificationResult, Measurements
 from wingopt.estimation.load_space import build_load_space
 from wingopt.estimation.mhe.consistency import first_inconsistent
 from wingopt.estimation.mhe.information import WindowInformation
@@ -56,7 +55,9 @@ from wingopt.estimation.mhe.settings import LOAD_MODELS, SIGN_MARGIN, STATE_PRIO
 from wingopt.estimation.mhe.solvers import NumpySolver, WindowSolution, make_solver
 from wingopt.estimation.mhe.start import SignPrior
 from wingopt.estimation.mhe.startup import StartUp
-from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
+from wingopt.estimation.noise import resolve_noise_std
+from wingopt.estimation.result import IdentificationResult
+from wingopt.measurements.series import Measurements
 from wingopt.membrane import MembraneModel, bubble
 
 __all__ = ["MHESettings", "MovingHorizonEstimator", "mhe_identify", "LOAD_MODELS", "STATE_PRIOR_EVIDENCE"]
@@ -139,20 +140,7 @@ class MovingHorizonEstimator(StartUp, WindowInformation):
         self.missing_rows = int(np.count_nonzero(missing.any(axis=1)))
         if missing.all():
             raise InputError("measurements: every sample is missing")
-        # Noise level: given > measurements > problem file > estimated from the data.
-        sigma = noise_std
-        source = "argument"
-        if sigma is None and meas.noise_std is not None:
-            sigma, source = meas.noise_std, "measurements"
-        if sigma is None and ident.noise_std is not None:
-            sigma, source = ident.noise_std, "problem file"
-        if sigma is None:
-            sigma, source = estimate_noise_std(y, MHE_NOISE, problem.sensor_names), "estimated from the data"
-            if np.any(sigma <= 0):
-                raise InputError("noise estimate: a sensor looks noise-free (constant or quantised); give noise_std")
-        sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (y.shape[1],)).copy()
-        if not np.all(np.isfinite(sigma) & (sigma > 0)):
-            raise InputError(f"noise_std = {sigma.tolist()}: expected positive values")
+        sigma, source = resolve_noise_std(y, problem.sensor_names, noise_std, meas.noise_std, ident.noise_std)
         self.noise_std, self.noise_source = sigma, source
         self.y = np.where(missing, 0.0, y)
         self.w = np.where(missing, 0.0, 1.0 / sigma**2)

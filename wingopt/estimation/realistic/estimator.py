@@ -26,17 +26,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.data import IdentificationResult, Measurements
-from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
+from wingopt.estimation.noise import resolve_noise_std
 from wingopt.estimation.realistic.adequacy import assess
-from wingopt.estimation.realistic.berger_modal import BergerModal
-from wingopt.estimation.realistic.fvk_model import PRESTRAIN_MODEL_FORM_REL, FvKModal, prestrain_std_with_model_form
 from wingopt.estimation.realistic.load_model import GustAmplitude, LoadShapes
+from wingopt.estimation.realistic.model_form import PRESTRAIN_MODEL_FORM_REL, prestrain_std_with_model_form
 from wingopt.estimation.realistic.prior_check import load_prior_check
 from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior, RecordProblem
 from wingopt.estimation.realistic.solver import Fit, levenberg_marquardt
 from wingopt.estimation.realistic.tension_profile import tension_profile
+from wingopt.estimation.result import IdentificationResult
+from wingopt.measurements.series import Measurements
 from wingopt.membrane import MembraneModel, bubble
+from wingopt.membrane.modal import BergerModal, FvKModal, ModalMembrane
 
 __all__ = ["RealisticSettings", "realistic_identify", "LOAD_MODELS", "MEMBRANE_MODELS"]
 
@@ -52,9 +53,8 @@ class RealisticSettings:
 
     Attributes
     ----------
-    modes, dynamic : int
-        Modes of the modal Berger model (lowest of the file's prestrain) and how many of them are
-        integrated (default all; the others are quasi-static).
+    modes : int
+        Modes of the modal model (lowest at the file's prestrain).
     state_modes : int
         Modes whose initial displacement and velocity are unknowns (the others start at the prior
         mean: they decay within a few ms).
@@ -81,13 +81,12 @@ class RealisticSettings:
     membrane_model : {"berger", "fvk"}
         The nonlinear model: ``berger`` (uniform tension following the mean stretch) or ``fvk``
         (Föppl–von Kármán's exact cubic stiffness on the ``cubic_modes`` lowest modes,
-        :class:`~wingopt.estimation.realistic.fvk_model.FvKModal`, built on the estimator's mesh).
+        :class:`~wingopt.membrane.modal.fvk.FvKModal`, built on the estimator's mesh).
     cubic_modes : int
         Modes with FvK's cubic stiffness (``membrane_model="fvk"``).
     """
 
     modes: int = 48
-    dynamic: int | None = None
     state_modes: int = 12
     substeps: int = 2
     substep_s: float = 0.5e-3
@@ -127,10 +126,10 @@ def _prior(problem, s: RealisticSettings) -> ParameterPrior:
     return ParameterPrior((e0, e0), tuple(free), rel, 1.0, drel)
 
 
-def _initial_state_prior(bm: BergerModal, problem, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+def _initial_state_prior(bm: ModalMembrane, problem, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
     """Prior mean and std of ``[q0, q0']``: the file's bubble when stated, else zero at the data's scale."""
     peak = problem.identification.initial_deflection
-    md = bm.dynamic
+    md = bm.m
     omega = bm.omega()[:md]
     known = peak != 0
     if known:
@@ -175,12 +174,12 @@ def _scan(rp: RecordProblem, sign_pref: float) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=4)
-def _modal_model(model, kind, modes, dt, substeps, dynamic, stretch_gain, cubic_modes) -> BergerModal:
+def _modal_model(model, kind, modes, dt, substeps, stretch_gain, cubic_modes) -> ModalMembrane:
     """The estimator's modal model, built once per membrane model and settings: a lab's records of
     one wing share it (the FvK tensor takes ~0.3 s, a third of a 1 s record's estimation)."""
     if kind == "fvk":
         return FvKModal.build(model, modes, dt=dt, substeps=substeps, cubic_modes=cubic_modes)
-    return BergerModal.build(model, modes, dt=dt, substeps=substeps, dynamic=dynamic, stretch_gain=stretch_gain)
+    return BergerModal.build(model, modes, dt=dt, substeps=substeps, stretch_gain=stretch_gain)
 
 
 def _fit(rp: RecordProblem, theta0: np.ndarray, s: RealisticSettings) -> Fit:
@@ -199,20 +198,14 @@ def realistic_identify(
     t0 = time.perf_counter()
     problem = model.problem
     meas = measurements
-    sigma = meas.noise_std
-    noise_source = "given"
-    if sigma is None and problem.identification.noise_std is not None:
-        ns = problem.identification.noise_std
-        sigma, noise_source = np.broadcast_to(np.array(ns, float), (len(meas.sensor_names),)), "problem file"
-    if sigma is None:
-        sigma, noise_source = estimate_noise_std(meas.values, MHE_NOISE, meas.sensor_names), "estimated from the data"
+    sigma, noise_source = resolve_noise_std(
+        meas.values, meas.sensor_names, None, meas.noise_std, problem.identification.noise_std
+    )
     sigma = np.asarray(sigma, float)
     p0 = problem.identification.initial_load if initial_load is None else float(initial_load)
     dt = float(np.median(np.diff(meas.t)))
     substeps = max(s.substeps, int(np.ceil(dt / s.substep_s - 1e-9)))
-    bm = _modal_model(
-        model, s.membrane_model, min(s.modes, model.n), dt, substeps, s.dynamic, s.stretch_gain, s.cubic_modes
-    )
+    bm = _modal_model(model, s.membrane_model, min(s.modes, model.n), dt, substeps, s.stretch_gain, s.cubic_modes)
     shapes = LoadShapes.build(model, s.shapes, p0, s.kappa, s.prior_power)
     prior = _prior(problem, s)
     x_mean, x_std, bubble_known = _initial_state_prior(bm, problem, meas.values)
@@ -233,7 +226,7 @@ def realistic_identify(
             x_std,
             None,
             kind == "nonlinear",
-            min(s.state_modes, bm.dynamic),
+            min(s.state_modes, bm.m),
         )
         # the alternative is fitted with few iterations first: it is finished only if it wins
         cap = s if i == 0 else s.replace(max_iter=min(s.max_iter, 12))

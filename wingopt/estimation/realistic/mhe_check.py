@@ -16,8 +16,9 @@ import dataclasses
 
 import numpy as np
 
-from wingopt.estimation.data import IdentificationResult, Measurements
 from wingopt.estimation.realistic.adequacy import assess
+from wingopt.estimation.result import IdentificationResult
+from wingopt.measurements.series import Measurements
 from wingopt.membrane import MembraneModel
 
 __all__ = ["check_mhe_result"]

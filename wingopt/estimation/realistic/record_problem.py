@@ -10,7 +10,7 @@ parameters (prestrains with a relative prior, the damping factor with a log-norm
 The cost ``|r|^2`` is a chi-square: data rows ``(y - s(theta)) / sigma`` for the samples present
 (a missing sample is a missing row, never invented) and the prior rows. The Jacobian is exact:
 the whole batch of complex-step perturbations is integrated at once
-(:meth:`~wingopt.estimation.realistic.berger_modal.BergerModal.simulate` is analytic in all its
+(the modal models' ``simulate`` is analytic in all its
 arguments), and ``ds/dtheta = 2 (C q)^T dq/dtheta``.
 """
 
@@ -22,9 +22,9 @@ from functools import cached_property
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.realistic.berger_modal import BergerModal
 from wingopt.estimation.realistic.load_model import GustAmplitude, LoadShapes
-from wingopt.estimation.realistic.tangent import ForceTangent
+from wingopt.membrane.modal import ModalMembrane
+from wingopt.membrane.modal.tangent import ForceTangent
 
 __all__ = ["PARAMETERS", "ParameterPrior", "RecordProblem"]
 
@@ -71,7 +71,7 @@ class ParameterPrior:
 class RecordProblem:
     """One record's estimation problem for a modal membrane (Berger or cubic FvK)."""
 
-    model: BergerModal
+    model: ModalMembrane
     shapes: LoadShapes
     t: np.ndarray
     y: np.ndarray
@@ -85,9 +85,9 @@ class RecordProblem:
     jacobian: str = "tangent"
 
     def __post_init__(self) -> None:
-        ms = self.model.dynamic if self.state_modes is None else int(self.state_modes)
-        if not 1 <= ms <= self.model.dynamic:
-            raise InputError(f"state modes = {ms}: expected 1..{self.model.dynamic}")
+        ms = self.model.m if self.state_modes is None else int(self.state_modes)
+        if not 1 <= ms <= self.model.m:
+            raise InputError(f"state modes = {ms}: expected 1..{self.model.m}")
         object.__setattr__(self, "state_modes", ms)
         if self.jacobian not in ("tangent", "complex-step"):
             raise InputError(f"jacobian = {self.jacobian!r}: expected 'tangent' or 'complex-step'")
@@ -141,7 +141,7 @@ class RecordProblem:
     def physical(self, theta: np.ndarray) -> dict:
         """Physical unknowns of ``theta`` ``(dim,)`` or a batch ``(B, dim)`` (complex allowed)."""
         th = np.atleast_2d(theta)
-        sl, md, ms = self.slices, self.model.dynamic, self.state_modes
+        sl, md, ms = self.slices, self.model.m, self.state_modes
         x0 = np.tile(self.x0_mean.astype(th.dtype), (th.shape[0], 1))
         xs = th[:, sl["x0"]]
         x0[:, :ms] += self.x0_std[:ms] * xs[:, :ms]
@@ -174,7 +174,7 @@ class RecordProblem:
         bm = self.model
         if self.nonlinear:
             return bm.simulate(ph["q0"], ph["v0"], forces, ph["prestrain_x"], ph["prestrain_y"], ph["damping"])
-        return bm.simulate_linear(ph["q0"], ph["v0"], forces, ph["prestrain_x"], ph["prestrain_y"], ph["damping"])
+        return bm.simulate(ph["q0"], ph["v0"], forces, ph["prestrain_x"], ph["prestrain_y"], ph["damping"], nonlinear=False)
 
     # -- cost ------------------------------------------------------------------------------
     @cached_property
@@ -199,7 +199,7 @@ class RecordProblem:
             Q = self.trajectory(theta[None])[:, 0].real
             pred = self.model.outputs(Q)
             return ((self.y - pred) / self.sigma)[self.valid], Rp @ theta
-        if self.jacobian == "tangent" and self.model.dynamic == self.model.m:
+        if self.jacobian == "tangent":
             Qr, dQ = self._tangent(theta)
         else:
             Q = self.trajectory(theta + 1j * _H * np.eye(self.dim))

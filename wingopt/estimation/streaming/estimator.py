@@ -50,14 +50,14 @@ from scipy.linalg import lapack
 from scipy.stats import chi2 as chi2_dist
 
 from wingopt.errors import InputError
-from wingopt.estimation.data import Measurements
 from wingopt.estimation.mhe import MovingHorizonEstimator
 from wingopt.estimation.mhe.consistency import SIGNIFICANCE
 from wingopt.estimation.mhe.model import MHEModel
 from wingopt.estimation.mhe.start import smooth_load_shapes
-from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
+from wingopt.estimation.noise import resolve_noise_std
 from wingopt.estimation.streaming.rows import LinearRows, RtiNormalEquations
 from wingopt.estimation.streaming.types import Estimate, SampleClock, StreamSettings
+from wingopt.measurements.series import Measurements
 from wingopt.membrane import MembraneModel, bubble
 
 __all__ = ["StreamSettings", "Estimate", "StreamingEstimator"]
@@ -242,13 +242,7 @@ class StreamingEstimator:
 
     def _noise(self, Y: np.ndarray) -> np.ndarray:
         ident = self.model.problem.identification
-        sigma = self._noise_arg if self._noise_arg is not None else ident.noise_std
-        if sigma is None:
-            sigma = estimate_noise_std(Y, MHE_NOISE, self.model.problem.sensor_names)
-        sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (self.p,)).copy()
-        if not np.all(np.isfinite(sigma) & (sigma > 0)):
-            raise InputError(f"noise_std = {sigma.tolist()}: expected positive values")
-        return sigma
+        return resolve_noise_std(Y, self.model.problem.sensor_names, self._noise_arg, None, ident.noise_std)[0]
 
     def _run_startup(self) -> None:
         """The batch start-up on the buffered samples, then the tracking window from its answer."""

@@ -4,7 +4,7 @@
 :class:`~wingopt.estimation.streaming.StreamingEstimator` (``push(t, y) -> Estimate``) on the
 realistic estimator's model (:mod:`wingopt.estimation.realistic`): the modal Berger membrane or,
 with ``membrane_model="fvk"``, the cubic modal FvK membrane of the batch default
-(:class:`~wingopt.estimation.streaming.fvk_step.FvKSample`); 48 modes of the 25x13 mesh, all
+(:class:`~wingopt.membrane.modal.fvk_step.FvKSample`); 48 modes of the 25x13 mesh, all
 dynamic, predictor-corrector tension, sub-steps of at most 0.5 ms; the 15 smoothest load shapes
 with their prior, the prestrains and the damping factor (the problem file's
 ``free_parameters``) with their priors: the batch problem, one sample at a time.
@@ -15,7 +15,7 @@ states of the 12 lowest modes (the others start at the prior mean), the load, th
 With no process noise on the state the filter's covariance is exactly ``P = G Sigma G^T``,
 ``G = dx/dtheta`` (``2m x d``, ``d = 2*12 + 15 + 3 = 42``), so ``G`` and ``Sigma`` (``d x d``) are
 propagated instead of ``P`` (``114 x 114``). Per sample: the state and ``G`` go one sample on by
-the Berger map and its exact tangent (:class:`~wingopt.estimation.streaming.berger_step.BergerSample`,
+the Berger map and its exact tangent (:class:`~wingopt.membrane.modal.berger_step.BergerSample`,
 ``d`` directions), a small random walk is added to the load block of ``Sigma`` (``load_walk``
 prior stds per sqrt(s): the estimate forgets slowly, a drifting load can be followed), and the
 measurement update linearises the quadratic sensors ``s_i = q^T C_i q`` at the prediction
@@ -60,17 +60,18 @@ from scipy.stats import chi2 as chi2_dist
 
 from wingopt.errors import InputError
 from wingopt.estimation.mhe.consistency import SIGNIFICANCE
-from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
-from wingopt.estimation.realistic.berger_modal import BergerModal
-from wingopt.estimation.realistic.fvk_model import FvKModal, prestrain_std_with_model_form
+from wingopt.estimation.noise import MHE_NOISE, resolve_noise_std
 from wingopt.estimation.realistic.load_model import LoadShapes
+from wingopt.estimation.realistic.model_form import prestrain_std_with_model_form
 from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior
-from wingopt.estimation.streaming.berger_step import BergerSample
-from wingopt.estimation.streaming.fvk_step import FvKSample
 from wingopt.estimation.streaming.nonlinear_start import TOLERANCE, batch_start
 from wingopt.estimation.streaming.running_noise import RunningNoise
 from wingopt.estimation.streaming.types import Estimate, NonlinearStreamSettings, SampleClock
 from wingopt.membrane import MembraneModel, bubble
+from wingopt.membrane.modal.berger import BergerModal
+from wingopt.membrane.modal.berger_step import BergerSample
+from wingopt.membrane.modal.fvk import FvKModal
+from wingopt.membrane.modal.fvk_step import FvKSample
 
 __all__ = ["NonlinearStreamSettings", "NonlinearStreamingEstimator"]
 
@@ -106,8 +107,8 @@ class NonlinearStreamingEstimator:
         self.initial_load = ident.initial_load if initial_load is None else float(initial_load)
         if self.initial_load == 0 or not np.isfinite(self.initial_load):
             raise InputError(f"initial_load = {self.initial_load!r}: expected a non-zero pressure (its sign)")
-        sigma = noise_std if noise_std is not None else ident.noise_std
-        self._sigma_given = None if sigma is None else self._check_sigma(sigma)
+        given = noise_std if noise_std is not None else ident.noise_std
+        self._sigma_given = None if given is None else resolve_noise_std(np.zeros((1, self.p)), self.names, given)[0]
         e0 = problem.material.prestrain
         free = s.free if s.free is not None else getattr(ident, "free_parameters", PARAMETERS)
         rel = getattr(ident, "prestrain_prior_rel", 0.2)
@@ -118,7 +119,9 @@ class NonlinearStreamingEstimator:
         self.phase = "waiting"
         self._clock = SampleClock(self.names)
         self._buf: list[np.ndarray] = []
-        self.noise_source = "given" if self._sigma_given is not None else None
+        self.noise_source = (
+            None if self._sigma_given is None else ("argument" if noise_std is not None else "problem file")
+        )
         self._running: RunningNoise | None = None
         self._level = 1.0
         self.last: Estimate | None = None
@@ -248,14 +251,8 @@ class NonlinearStreamingEstimator:
         return out
 
     # -- start-up ----------------------------------------------------------------------------------
-    def _check_sigma(self, sigma) -> np.ndarray:
-        sigma = np.broadcast_to(np.asarray(sigma, dtype=float), (self.p,)).copy()
-        if not np.all(np.isfinite(sigma) & (sigma > 0)):
-            raise InputError(f"noise_std = {sigma.tolist()}: expected positive values")
-        return sigma
-
     def _noise(self, Y: np.ndarray) -> np.ndarray:
-        sigma, self.noise_source = estimate_noise_std(Y, MHE_NOISE, self.names), "estimated from the data"
+        sigma, self.noise_source = resolve_noise_std(Y, self.names, allow_zero=True)
         scale = np.nanmax(np.abs(Y), axis=0)
         return np.maximum(sigma, 1e-6 * np.where(np.isfinite(scale) & (scale > 0), scale, 1.0))
 

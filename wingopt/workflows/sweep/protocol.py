@@ -19,9 +19,9 @@ import numpy as np
 
 from wingopt.errors import SolverError
 from wingopt.estimation.mhe import MHESettings
-from wingopt.membrane import MembraneModel
+from wingopt.membrane import MembraneModel, TruthRecord
 from wingopt.problem.membrane import MembraneProblem
-from wingopt.workflows.protocols import SimulatedCase, simulate_case
+from wingopt.workflows.protocols import simulate_case
 from wingopt.workflows.studies import (
     ORACLE_OFFSETS,
     evaluate,
@@ -67,7 +67,7 @@ def digest(*parts) -> str:
     return hashlib.sha1(repr(parts).encode()).hexdigest()[:16]
 
 
-def simulate_clean(problem: MembraneProblem, load: str, truth_nodes, t_end: float) -> SimulatedCase:
+def simulate_clean(problem: MembraneProblem, load: str, truth_nodes, t_end: float) -> TruthRecord:
     """The noise-free protocol run of ``load`` (truth on ``truth_nodes``): a shared input."""
     return simulate_case(problem, load, 0.0, None, truth_nodes, t_end)
 
@@ -78,7 +78,7 @@ def build_model(problem: MembraneProblem) -> MembraneModel:
 
 
 def protocol_record(
-    clean: SimulatedCase,
+    clean: TruthRecord,
     model: MembraneModel,
     params: dict,
     method: str,

@@ -1,6 +1,6 @@
 """Parsing a sensor CSV line by line, for a stream that grows (``wingopt identify --follow``).
 
-Same format and checks as :func:`wingopt.estimation.csv_data.read_measurements` (header with
+Same format and checks as :func:`wingopt.measurements.csv_file.read_measurements` (header with
 ``t`` and one column per sensor, ``#`` comments, empty cells / ``nan`` / ``NA`` missing, values
 that cannot be a stretch refused), applied one row at a time: the sample period is the first time
 step; a later step that is a whole multiple of it is a gap, filled with missing rows; any other
@@ -16,7 +16,7 @@ import re
 import numpy as np
 
 from wingopt.errors import DataFileError
-from wingopt.estimation.csv_data import MAX_STRETCH, _cell, header_columns
+from wingopt.measurements.csv_file import MAX_STRETCH, _cell, header_columns
 
 __all__ = ["CsvRowParser", "END_MARKER"]
 

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from wingopt.errors import DataFileError
-from wingopt.estimation.data import Measurements
+from wingopt.measurements.series import Measurements
 
 __all__ = ["CsvReport", "read_measurements", "MISSING_TOKENS", "MAX_STRETCH"]
 

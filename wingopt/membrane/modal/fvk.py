@@ -1,34 +1,35 @@
-"""Cubic modal Föppl–von Kármán membrane for the realistic estimator, with exact sensitivities.
+"""Cubic modal Föppl–von Kármán membrane, with exact sensitivities.
 
 The FvK in-plane problem is linear, so the deflection-induced out-of-plane force is exactly cubic
-(docs/membrane_nonlinear.md §2b). On the ``r`` lowest modes of the estimator's modal model
-(:class:`~wingopt.estimation.realistic.berger_modal.BergerModal`: same modes, linear part,
-damping, sensors and input) the Galerkin force is ``N_i(q) = B_ijkl q_j q_k q_l`` with the tensor of
-:func:`wingopt.membrane.fvk_modal.cubic_tensor`, built once on the estimator's mesh; the higher
-modes respond linearly at the prestress. The tensor does not depend on the prestrains or the
-damping: they enter the linear part only, exactly as in the Berger model.
+(docs/membrane_nonlinear.md §2b). On the ``r`` lowest modes of a
+:class:`~wingopt.membrane.modal.base.ModalMembrane` the Galerkin force is ``N_i(q) = B_ijkl q_j q_k q_l``
+with the tensor of :func:`~wingopt.membrane.modal.cubic.cubic_tensor`, built once on the model's
+mesh from the full FvK membrane's in-plane operator; the higher modes respond linearly at the
+prestress. The tensor does not depend on the prestrains or the damping: they enter the linear
+part only.
 
-Integration (as the modal Berger model's, explicit, second order): ``N(q) = S(q) q`` with the
-secant matrix ``S_ij = B_ijkl q_k q_l``. Its diagonal joins each oscillator's stiffness (for a
-uniform in-plane stress it *is* Berger's tension term), the off-diagonal rest ``R = N - diag(S) q``
-is a force held over the step; both are taken at the mean of the step start and the predicted end
+Integration (explicit, second order): ``N(q) = S(q) q`` with the secant matrix
+``S_ij = B_ijkl q_k q_l``. Its diagonal joins each oscillator's stiffness (for a uniform in-plane
+stress it *is* Berger's tension term), the off-diagonal rest ``R = N - diag(S) q`` is a force held
+over the step; both are taken at the mean of the step start and the predicted end
 (predictor-corrector). The forward sensitivities differentiate exactly this integrator
 (:meth:`FvKModal.simulate_tangent`, checked against complex steps). Real single trajectories and
-the tangent run in compiled loops (:mod:`~wingopt.estimation.realistic.fvk_kernels`, the same
-arithmetic); complex and batched runs use the NumPy loops here.
+the tangent run in compiled loops (:mod:`~wingopt.membrane.modal.kernels`, the same arithmetic);
+complex and batched runs use the NumPy loops here.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 from dataclasses import dataclass
 
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.realistic.berger_modal import BergerModal, oscillator_step
-from wingopt.estimation.realistic.fvk_kernels import (
+from wingopt.membrane.full.fvk import FvKMembrane
+from wingopt.membrane.modal.base import ModalMembrane
+from wingopt.membrane.modal.cubic import cubic_tensor
+from wingopt.membrane.modal.kernels import (
     SETTLE_TOL,
     SETTLE_TOL_TANGENT,
     fvk_tangent,
@@ -36,38 +37,21 @@ from wingopt.estimation.realistic.fvk_kernels import (
     pair_tensor,
     settled_from,
 )
-from wingopt.estimation.realistic.tangent import ForceTangent, _step, prestress_terms
-from wingopt.membrane import MembraneModel
-from wingopt.membrane.fvk import FvKMembrane
-from wingopt.membrane.fvk_modal import cubic_tensor
+from wingopt.membrane.modal.oscillator import oscillator_step, oscillator_tangent, prestress_terms
+from wingopt.membrane.modal.tangent import ForceTangent
+from wingopt.membrane.model import MembraneModel
 
-__all__ = ["FvKModal", "PRESTRAIN_MODEL_FORM_REL", "prestrain_std_with_model_form"]
+__all__ = ["FvKModal"]
 
 log = logging.getLogger(__name__)
 
-PRESTRAIN_MODEL_FORM_REL = 0.03
-"""Model-form 1-sigma of each identified prestrain, relative to it (added in quadrature).
-
-Measured on Föppl–von Kármán truth (49x25, the seed protocol, docs/estimation_realistic.md): in the
-bubble's first 20 ms this modal model is 0.6–0.8 % of the sensors' peak off the full FvK model,
-and the prestrain split, the record's weakest direction, follows: e0x comes out 2–5 % low and e0y
-2–3 % high, 1–2 of the data's own sigma, on every case measured (the first mode's combination and
-the lift are not affected). The data's posterior cannot see a bias of its own model."""
-
-
-def prestrain_std_with_model_form(name: str, estimate: float, std: float) -> float:
-    """``std`` of parameter ``name`` with the modal FvK model's split term (prestrains only)."""
-    if not name.startswith("prestrain"):
-        return std
-    return float(np.hypot(std, PRESTRAIN_MODEL_FORM_REL * abs(estimate)))
-
 
 @dataclass(frozen=True, eq=False)
-class FvKModal(BergerModal):
+class FvKModal(ModalMembrane):
     """Modal membrane with FvK's exact cubic stiffness on its ``cubic_modes`` lowest modes.
 
-    Attributes (besides :class:`BergerModal`'s)
-    ---------------------------------------------
+    Attributes (besides :class:`ModalMembrane`'s)
+    -----------------------------------------------
     tensor : ndarray ``(r^2, r^2)``
         ``B[(i, j), (k, l)]``, fully symmetric (a potential's fourth derivative).
     diag_tensor : ndarray ``(r, r, r)``
@@ -89,16 +73,15 @@ class FvKModal(BergerModal):
     ) -> FvKModal:
         """The ``modes`` lowest modes of ``model`` (all integrated), the ``cubic_modes`` lowest with
         FvK's cubic stiffness (``cubic_modes^2 / 2`` in-plane solves on ``model``'s mesh)."""
-        bm = BergerModal.build(model, modes, dt=dt, substeps=substeps)
-        r = cubic_modes
-        if not (isinstance(r, (int, np.integer)) and 1 <= r <= bm.m):
-            raise InputError(f"cubic_modes = {r!r}: expected an integer in [1, {bm.m}]")
+        base = cls.modal_fields(model, modes, dt, substeps)
+        r, m = cubic_modes, base["kx"].size
+        if not (isinstance(r, (int, np.integer)) and 1 <= r <= m):
+            raise InputError(f"cubic_modes = {r!r}: expected an integer in [1, {m}]")
         fvk = FvKMembrane(model.problem)
         if fvk.n != model.n:  # pragma: no cover - same problem, same mesh
             raise InputError(f"FvK model: {fvk.n} dofs, expected {model.n}")
-        B = cubic_tensor(fvk, bm.shapes[:, :r]).reshape(r, r, r, r)
+        B = cubic_tensor(fvk, base["shapes"][:, :r]).reshape(r, r, r, r)
         idx = np.arange(r)
-        base = {f.name: getattr(bm, f.name) for f in dataclasses.fields(BergerModal)}
         T = B.reshape(r * r, r * r)
         return cls(**base, tensor=T, diag_tensor=np.ascontiguousarray(B[idx, idx]), pair_tensor=pair_tensor(T, r))
 
@@ -123,17 +106,30 @@ class FvKModal(BergerModal):
         d = np.einsum("...ii->...i", S)
         return d, np.einsum("...ij,...j->...i", S, a) - d * a
 
+    def internal_force(self, q, ex, ey, nonlinear: bool = True):
+        """``k0 q + N(q)`` and its Jacobian ``diag(k0) + 3 S(q)`` (``S`` the symmetric secant)."""
+        k0 = self.omega(ex, ey) ** 2
+        F, J = k0 * q, np.diag(k0)
+        if nonlinear:
+            r = self.cubic_modes
+            a = q[:r]
+            S = ((a[:, None] * a[None, :]).ravel() @ self.tensor).reshape(r, r)
+            F = F.copy()
+            F[:r] += S @ a
+            J[:r, :r] += 3.0 * S
+        return F, J
+
     # -- dynamics --------------------------------------------------------------------------
     def simulate(self, q0, v0, forces, ex, ey, damping=1.0, nonlinear: bool = True):
-        """Modal displacements ``(N + 1, ..., m)`` at every sample (as :meth:`BergerModal.simulate`;
-        ``nonlinear=False``: the linear model, identical to the Berger model's)."""
+        """Modal displacements ``(N + 1, ..., m)`` at every sample (arguments as
+        :meth:`~wingopt.membrane.modal.berger.BergerModal.simulate`; ``nonlinear=False``: the linear
+        model, the Berger model's without its stretch)."""
         forces = np.asarray(forces)
         N, m, r = forces.shape[0], self.m, self.cubic_modes
         dtype = np.result_type(q0, v0, forces, ex, ey, damping, float)
         if dtype == np.float64:
             return self._simulate_compiled(q0, v0, forces, ex, ey, damping, nonlinear)
-        if not nonlinear:
-            return super().simulate(q0, v0, forces, ex, ey, damping, nonlinear=False)
+        r = r if nonlinear else 0
         q = np.array(q0, dtype=dtype)
         v = np.array(v0, dtype=dtype)
         ex = np.asarray(ex, dtype=dtype)[..., None]
@@ -148,11 +144,12 @@ class FvKModal(BergerModal):
         Q[0] = q
 
         def stiff(q):
-            d, R = self._secant(q)
             kk = np.array(np.broadcast_to(k0, shape + (m,)), dtype=dtype)
-            kk[..., :r] += d
             Rf = np.zeros(shape + (m,), dtype=dtype)
-            Rf[..., :r] = R
+            if r:
+                d, R = self._secant(q)
+                kk[..., :r] += d
+                Rf[..., :r] = R
             return kk, Rf
 
         with np.errstate(over="ignore", invalid="ignore"):  # a diverging trial step gives non-finite costs
@@ -195,7 +192,7 @@ class FvKModal(BergerModal):
 
     def simulate_tangent(self, q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforces, nonlinear: bool = True):
         """Trajectory ``(N+1, m)`` and its exact tangents ``(N+1, P, m)``; arguments as
-        :func:`~wingopt.estimation.realistic.tangent.simulate_tangent`."""
+        :func:`~wingopt.membrane.modal.tangent.simulate_tangent`."""
         h, k0, dk0, a, da, e = prestress_terms(self, ex, ey, damping, dpar)
         if isinstance(dforces, ForceTangent):
             f = dforces
@@ -208,9 +205,7 @@ class FvKModal(BergerModal):
                 settled_from(forces, f.amp, f.hats), SETTLE_TOL, SETTLE_TOL_TANGENT,
             )  # fmt: skip
             return Q, dQ.transpose(0, 2, 1)
-        if not nonlinear:
-            return super().simulate_tangent(q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforces, False)
-        m, r = self.m, self.cubic_modes
+        m, r = self.m, self.cubic_modes if nonlinear else 0
         T, Bd = self.tensor, self.diag_tensor
         N, P = forces.shape[0], dq0.shape[0]
         Q, dQ = np.empty((N + 1, m)), np.empty((N + 1, P, m))
@@ -218,6 +213,8 @@ class FvKModal(BergerModal):
         Q[0], dQ[0] = q, dq
 
         def stiff(q, dq):
+            if not r:
+                return k0, dk0, np.zeros(m), np.zeros((P, m))
             x, dx = q[:r], dq[:, :r]
             S = (np.outer(x, x).ravel() @ T).reshape(r, r)
             d = np.diag(S).copy()
@@ -234,9 +231,9 @@ class FvKModal(BergerModal):
             u, du = forces[j], dforces(j)
             for _ in range(self.substeps):
                 k1, dk1, R1, dR1 = stiff(q, dq)
-                qp, _, dqp, _ = _step(q, v, u - R1, k1, a, e, h, dq, dv, du - dR1, dk1, da)
+                qp, _, dqp, _ = oscillator_tangent(q, v, u - R1, k1, a, e, h, dq, dv, du - dR1, dk1, da)
                 k2, dk2, R2, dR2 = stiff(qp, dqp)
-                q, v, dq, dv = _step(
+                q, v, dq, dv = oscillator_tangent(
                     q,
                     v,
                     u - 0.5 * (R1 + R2),

@@ -15,9 +15,8 @@ and constant; it is factorised once, so the in-plane equilibrium for a given ``w
 
 Dynamics: in-plane inertia is neglected (in-plane waves are ~100x faster), so ``u, v`` follow
 ``w`` quasi-statically and the out-of-plane equation ``rho h M w'' + D w' + F(w) = p`` with the
-reduced force ``F(w) = R_w(w, u(w), v(w))`` is integrated by :func:`~wingopt.membrane.fvk_sim.simulate_fvk`
-(exponential integrator) or :func:`~wingopt.membrane.nonlinear.integrate` (generalised-alpha; its
-Newton matrix is the exact Schur complement, solved as one sparse coupled system).
+reduced force ``F(w) = R_w(w, u(w), v(w))`` is integrated by the full-order integrator
+(:func:`~wingopt.membrane.full.integrator.integrate`, exponential integrator).
 """
 
 from __future__ import annotations
@@ -31,86 +30,14 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from wingopt.errors import InputError, SolverError
-from wingopt.fe import gauss_legendre
+from wingopt.fe.points import PointOperators
+from wingopt.membrane.full.operators import PrestressedOperators
 from wingopt.membrane.model import MembraneModel
-from wingopt.membrane.nonlinear import MembraneParameters, PrestressedOperators, membrane_stiffness
+from wingopt.membrane.parameters import MembraneParameters, membrane_stiffness
 
-__all__ = ["FvKMembrane", "StaticSolution", "PointOperators"]
+__all__ = ["FvKMembrane", "StaticSolution"]
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True, eq=False)
-class PointOperators:
-    """A tensor space's basis at the tensor grid of Gauss points: fields, weak forms, matrices.
-
-    The points are ``(xq_i, yq_j)`` with ``j`` fastest. Fields and weak-form vectors are
-    evaluated by sum factorisation (``B1x Z B0y^T``: small dense products). Matrices of forms
-    ``∫ c(x) d_a(phi) d_b(phi)^T`` with point coefficients ``c`` are assembled element by element
-    as one dense product (the local splines are the same on every element of a uniform mesh) and
-    one scatter, like :func:`wingopt.fe.assemble` but for coefficients that vary in the element.
-    """
-
-    space: object
-    x: tuple[np.ndarray, np.ndarray]  # 1-D values and slopes at the x points, (nqx, nx)
-    y: tuple[np.ndarray, np.ndarray]
-    weights: np.ndarray
-    order: int
-
-    @classmethod
-    def build(cls, space, order: int = 5) -> PointOperators:
-        t, wt = gauss_legendre(order)
-        mats, wts = [], []
-        for b in (space.bx, space.by):
-            xq = ((np.arange(b.n_elements)[:, None] + t[None, :]) * b.h).ravel()
-            mats.append((b.matrix(xq, 0).toarray(), b.matrix(xq, 1).toarray()))
-            wts.append(np.tile(wt * b.h, b.n_elements))
-        return cls(space, mats[0], mats[1], np.outer(wts[0], wts[1]).ravel(), order)
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        return self.space.shape
-
-    def gradient(self, coef: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(f_x, f_y)`` at all points of the field with coefficients ``coef``."""
-        Z = coef.reshape(self.shape)
-        return (self.x[1] @ Z @ self.y[0].T).ravel(), (self.x[0] @ Z @ self.y[1].T).ravel()
-
-    def divergence(self, ax: np.ndarray, ay: np.ndarray) -> np.ndarray:
-        """``∫ (a_x phi_x + a_y phi_y)`` for point data ``a_x, a_y`` already multiplied by the weights."""
-        nq = (self.x[0].shape[0], self.y[0].shape[0])
-        return (self.x[1].T @ ax.reshape(nq) @ self.y[0] + self.x[0].T @ ay.reshape(nq) @ self.y[1]).ravel()
-
-    @cached_property
-    def _local(self):
-        """Local products ``P_ab[q, (i, j)]`` of the 16 element splines, and the scatter indices."""
-        sp_, o = self.space, self.order
-        t, _ = gauss_legendre(o)
-        vals = {}
-        for d in ((1, 0), (0, 1)):  # d/dx, d/dy of the 16 local functions at the o*o points
-            vx, vy = sp_.bx.local_values(None, t, d[0]), sp_.by.local_values(None, t, d[1])
-            vals[d] = np.einsum("pa,qb->pqab", vx, vy).reshape(o * o, 16)
-        keys = {"x": (1, 0), "y": (0, 1)}
-        prod = {
-            a + b: np.einsum("qi,qj->qij", vals[keys[a]], vals[keys[b]]).reshape(o * o, 256) for a in "xy" for b in "xy"
-        }
-        ex, ey = np.meshgrid(np.arange(sp_.bx.n_elements), np.arange(sp_.by.n_elements), indexing="ij")
-        dofs = sp_.local_dofs(ex.ravel(), ey.ravel())
-        rows, cols = np.repeat(dofs, 16, axis=1).ravel(), np.tile(dofs, (1, 16)).ravel()
-        return prod, rows, cols
-
-    def matrix(self, *terms: tuple[str, np.ndarray]) -> sp.csr_matrix:
-        """``Σ ∫ c d_a(phi) d_b(phi)^T`` for terms ``("xy", c)`` etc.: ``a, b`` in ``x, y``, ``c`` at the points."""
-        prod, rows, cols = self._local
-        nex, ney, o = self.space.bx.n_elements, self.space.by.n_elements, self.order
-        local = 0.0
-        for ab, c in terms:
-            cw = (np.broadcast_to(c, self.weights.shape) * self.weights).reshape(nex, o, ney, o)
-            local = local + cw.transpose(0, 2, 1, 3).reshape(nex * ney, o * o) @ prod[ab]
-        n_full = self.space.n_full
-        full = sp.csr_matrix((local.ravel(), (rows, cols)), shape=(n_full, n_full))
-        T = self.space.transform
-        return (T.T @ full @ T).tocsr()
 
 
 @dataclass(frozen=True, eq=False)
@@ -139,14 +66,50 @@ class FvKMembrane(PrestressedOperators):
     """
 
     def __init__(self, problem, nodes=None, params: MembraneParameters | None = None, order: int = 5) -> None:
-        self.linear = MembraneModel.from_problem(problem, nodes)
-        self.problem = self.linear.problem
-        self.params = MembraneParameters.nominal(problem) if params is None else params
-        self.space = self.linear.space
+        self._setup(MembraneModel.from_problem(problem, nodes), params, order)
+
+    @classmethod
+    def from_model(cls, model: MembraneModel, params: MembraneParameters | None = None, order: int = 5) -> FvKMembrane:
+        """The FvK membrane on a linear model's mesh (its space, Gram and sensors are shared)."""
+        self = cls.__new__(cls)
+        self._setup(model, params, order)
+        return self
+
+    def _setup(self, model: MembraneModel, params: MembraneParameters | None, order: int) -> None:
+        self.linear = model
+        self.problem = model.problem
+        self.params = MembraneParameters.nominal(self.problem) if params is None else params
+        self.space = model.space
         self.n = self.space.n
         mat = self.problem.material
         self.C, self.nu = membrane_stiffness(mat), mat.poisson_ratio
+        self.area = self.problem.width * self.problem.height
+        self.rho_h = mat.areal_density
         self.ops = PointOperators.build(self.space, order)
+
+    def with_params(self, params: MembraneParameters) -> FvKMembrane:
+        """The same operators with other parameters (the in-plane factorisation is shared)."""
+        other = FvKMembrane.__new__(FvKMembrane)
+        other.__dict__.update(self.__dict__)
+        other.params = params
+        for key in ("damping", "linear_stiffness"):
+            other.__dict__.pop(key, None)
+        return other
+
+    stretch_gain = 1.0
+    """The uniform-tension part of the tangent is Berger's at gain 1 (the integrator's Newton matrix)."""
+
+    def remainder(self, q: np.ndarray) -> np.ndarray:
+        """Modal ``V^T N(V q)``: the FvK force less its prestress part (separable modes)."""
+        m = self.modes
+        return (
+            m.to_modal_force(self.force(m.to_field(q)))
+            - (self.prestress[0] * m.lam_x + self.prestress[1] * m.lam_y) * q
+        )
+
+    def equilibrium(self, f: np.ndarray) -> np.ndarray:
+        """Static deflection under load coefficients ``f`` (the forward-model protocol)."""
+        return self.static(self.gram @ np.asarray(f, float)).z
 
     # -- linear operators -------------------------------------------------------------------
 
@@ -240,15 +203,6 @@ class FvKMembrane(PrestressedOperators):
         ey = self.params.eps0_y + vy + 0.5 * wy * wy
         nx, ny, nxy = C * (ex + nu * ey), C * (ey + nu * ex), 0.5 * C * (1 - nu) * (uy + vx + wx * wy)
         return o.divergence(W * (nx * wx + nxy * wy), W * (nxy * wx + ny * wy))
-
-    def tangent_solver(self, z: np.ndarray, S, ck: float):
-        """Solver of ``(S + ck dF/dw) dz = r``: the coupled system with ``u, v`` (exact Schur complement)."""
-        u, v = self.inplane(z)
-        n = self.n
-        K = ck * self.tangent(z, u, v)
-        A = (K + sp.block_diag([S, sp.csr_matrix((2 * n, 2 * n))])).tocsc()
-        lu = spla.splu(A)
-        return lambda r: lu.solve(np.concatenate([r, np.zeros(2 * n)]))[:n]
 
     # -- statics --------------------------------------------------------------------------------
     def static(

@@ -1,10 +1,10 @@
 """One sample of the modal Berger membrane and its exact tangent, for the streaming (EKF) estimator.
 
-The map is :meth:`~wingopt.estimation.realistic.berger_modal.BergerModal.simulate` over one sample
-(all modes dynamic, predictor-corrector "midpoint" tension, ``substeps`` steps): the same exact
-oscillator step (:func:`~wingopt.estimation.realistic.berger_modal.oscillator_step`) with the
+The map is :meth:`~wingopt.membrane.modal.berger.BergerModal.simulate` over one sample
+(predictor-corrector tension, ``substeps`` steps): the same exact
+oscillator step (:func:`~wingopt.membrane.modal.oscillator.oscillator_step`) with the
 tension frozen over a sub-step. Its tangent is written out per stage (as in
-:mod:`wingopt.estimation.realistic.tangent`, which gives the displacement sensitivities of a whole
+:mod:`wingopt.membrane.modal.tangent`, which gives the displacement sensitivities of a whole
 record; the filter also needs the velocities, and one sample at a time): for one oscillator step
 ``q1 = qe + A (q - qe) + B v``, ``v1 = Cq v - Dk (q - qe)`` (``qe = u / k``, ``a = c / 2``) the
 partials w.r.t. ``q, v, u, k, a`` are per-mode vectors, the transcendental functions are evaluated
@@ -22,8 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.realistic.berger_modal import BergerModal, oscillator_step
-from wingopt.estimation.realistic.tangent import step_gains
+from wingopt.membrane.modal.berger import BergerModal
+from wingopt.membrane.modal.oscillator import oscillator_step, step_gains
 
 __all__ = ["BergerSample"]
 
@@ -34,7 +34,6 @@ class BergerSample:
     Parameters
     ----------
     bm : BergerModal
-        All modes dynamic, ``scheme="midpoint"``.
     load_forces : ndarray ``(ns, m)``
         Modal force per unit of each load unknown (its tangent seed).
     load_rows, par_rows : slice
@@ -47,8 +46,8 @@ class BergerSample:
     """
 
     def __init__(self, bm: BergerModal, load_forces: np.ndarray, load_rows: slice, par_rows: slice) -> None:
-        if bm.dynamic != bm.m or bm.scheme != "midpoint":
-            raise InputError("BergerSample: needs all modes dynamic and the midpoint scheme")
+        if not isinstance(bm, BergerModal):
+            raise InputError(f"BergerSample: needs a BergerModal, got {type(bm).__name__}")
         mat = bm.model.problem.material
         self.bm = bm
         self.m = bm.m

@@ -1,28 +1,16 @@
-"""Shared pieces of the geometrically nonlinear membrane models (spec §8).
+"""Test support: an independent implicit integrator (generalised-alpha, Chung & Hulbert 1993).
 
-* :class:`MembraneParameters` — the identifiable parameters: prestrains ``eps0_x, eps0_y`` and
-  scale factors of the two damping terms.
-* :class:`AlphaSettings` and :func:`integrate` — an implicit generalised-alpha integrator
-  (Chung & Hulbert 1993) with Newton iterations for ``M a + D v + F(z) = p(t)``, for any model
-  with ``force`` and ``tangent_solver`` (FvK, Berger, :class:`LinearStructure`). The records use
-  the more accurate exponential integrators (:mod:`~wingopt.membrane.fvk_sim`,
-  :mod:`~wingopt.membrane.berger_sim`); this one is the independent cross-check.
-
-Damping (both nonlinear models): ``D = s_v gamma M + s_kv eta K_T0`` with
-``K_T0 = Tx0 Gx + Ty0 Gy`` the linear tension matrix of the *prestress* (``Tx0, Ty0`` from
-``eps0_x, eps0_y``), ``Gx = ∫ phi_x phi_x^T``, ``Gy = ∫ phi_y phi_y^T``. It is the linear model's
-damping (spec §2) for that prestrain and does not follow the deflection-induced tension: the
-damping stays linear, so the small-load limit is the linear model exactly and the damping scales
-enter the equations linearly.
+The package integrates the full-order membranes with one exponential integrator
+(:func:`wingopt.membrane.full.integrator.integrate`); this Newton-based generalised-alpha scheme
+with the exact coupled tangent is the independent cross-check the tests hold it against. Not part
+of the package: nothing but the tests uses it.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import cached_property
 from typing import Protocol
 
 import numpy as np
@@ -30,120 +18,43 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from wingopt.errors import InputError, SolverError
-
-__all__ = [
-    "PrestressedOperators",
-    "MembraneParameters",
-    "AlphaSettings",
-    "NonlinearStructure",
-    "LinearStructure",
-    "AlphaResult",
-    "integrate",
-    "alpha_coefficients",
-]
+from wingopt.membrane.full.berger import BergerMembrane
+from wingopt.membrane.full.fvk import FvKMembrane
 
 log = logging.getLogger(__name__)
 
 
-@dataclass(frozen=True)
-class MembraneParameters:
-    """Identifiable membrane parameters.
+def berger_tangent_solver(self, z: np.ndarray, S0, ck: float):
+    """Solver of ``(S0 + ck dF/dz) dz = r``: sparse LU plus a rank-2 Woodbury correction."""
+    S, U, B = self.tangent_parts(z)
+    lu = spla.splu((S0 + ck * S).tocsc())
+    AU = lu.solve(U)
+    cap = np.linalg.inv(ck * B) + U.T @ AU
 
-    Attributes
-    ----------
-    eps0_x, eps0_y : float
-        Prestrain in x (chordwise) and y (spanwise); may be zero (no prestress).
-    viscous_scale, kelvin_voigt_scale : float
-        Factors on the problem's ``gamma`` and ``eta``.
-    """
+    def solve(r):
+        y = lu.solve(r)
+        return y - AU @ np.linalg.solve(cap, U.T @ y)
 
-    eps0_x: float
-    eps0_y: float
-    viscous_scale: float = 1.0
-    kelvin_voigt_scale: float = 1.0
-
-    NAMES = ("eps0_x", "eps0_y", "viscous_scale", "kelvin_voigt_scale")
-
-    def __post_init__(self) -> None:
-        for name in self.NAMES:
-            val = getattr(self, name)
-            if not (np.isfinite(val) and val >= 0):
-                raise InputError(f"{name} = {val!r}: expected a finite non-negative number")
-
-    @classmethod
-    def nominal(cls, problem, prestrain: tuple[float, float] | None = None, damping_scale=1.0) -> MembraneParameters:
-        """The problem file's isotropic prestrain (or ``prestrain = (ex, ey)``) and damping.
-
-        ``damping_scale`` is one factor for both damping terms or a pair ``(viscous, kelvin_voigt)``.
-        """
-        e = problem.material.prestrain
-        ex, ey = (e, e) if prestrain is None else (float(prestrain[0]), float(prestrain[1]))
-        sv, sk = (damping_scale, damping_scale) if np.isscalar(damping_scale) else damping_scale
-        return cls(ex, ey, float(sv), float(sk))
-
-    def replace(self, **kw) -> MembraneParameters:
-        return dataclasses.replace(self, **kw)
-
-    def as_array(self) -> np.ndarray:
-        return np.array([getattr(self, n) for n in self.NAMES])
+    return solve
 
 
-def membrane_stiffness(material) -> float:
-    """``C = E h / (1 - nu^2)`` (N/m)."""
-    return material.youngs_modulus * material.thickness / (1.0 - material.poisson_ratio**2)
+def fvk_tangent_solver(self, z: np.ndarray, S, ck: float):
+    """Solver of ``(S + ck dF/dw) dz = r``: the coupled system with ``u, v`` (exact Schur complement)."""
+    u, v = self.inplane(z)
+    n = self.n
+    K = ck * self.tangent(z, u, v)
+    A = (K + sp.block_diag([S, sp.csr_matrix((2 * n, 2 * n))])).tocsc()
+    lu = spla.splu(A)
+    return lambda r: lu.solve(np.concatenate([r, np.zeros(2 * n)]))[:n]
 
 
-def prestress_tensions(material, params: MembraneParameters) -> tuple[float, float]:
-    """``Tx0 = C (eps0_x + nu eps0_y)``, ``Ty0 = C (eps0_y + nu eps0_x)`` (N/m)."""
-    C, nu = membrane_stiffness(material), material.poisson_ratio
-    return C * (params.eps0_x + nu * params.eps0_y), C * (params.eps0_y + nu * params.eps0_x)
-
-
-class PrestressedOperators:
-    """The operators every nonlinear membrane shares: Grams of the slopes, prestress, damping.
-
-    Mixed into :class:`~wingopt.membrane.berger.BergerMembrane` and
-    :class:`~wingopt.membrane.fvk.FvKMembrane`, which set ``linear`` (the linear
-    :class:`~wingopt.membrane.MembraneModel` of the mesh), ``space``, ``problem`` and ``params``.
-    """
-
-    @cached_property
-    def gx(self) -> sp.csr_matrix:
-        """``Gx = ∫ phi_x phi_x^T`` (Kronecker product of 1-D Grams)."""
-        sx = self.space
-        return sp.kron(sx.bx.gram(1, 1), sx.by.gram(0, 0), format="csr")
-
-    @cached_property
-    def gy(self) -> sp.csr_matrix:
-        """``Gy = ∫ phi_y phi_y^T``."""
-        sx = self.space
-        return sp.kron(sx.bx.gram(0, 0), sx.by.gram(1, 1), format="csr")
-
-    @property
-    def gram(self) -> sp.csr_matrix:
-        return self.linear.gram
-
-    @property
-    def mass(self) -> sp.csr_matrix:
-        return self.linear.mass
-
-    @property
-    def prestress(self) -> tuple[float, float]:
-        return prestress_tensions(self.problem.material, self.params)
-
-    @cached_property
-    def linear_stiffness(self) -> sp.csr_matrix:
-        """``K_T0 = Tx0 Gx + Ty0 Gy``: the small-deflection limit of the tangent."""
-        tx, ty = self.prestress
-        return (tx * self.gx + ty * self.gy).tocsr()
-
-    @cached_property
-    def damping(self) -> sp.csr_matrix:
-        """``s_v gamma M + s_kv eta K_T0`` (the linear model's damping at the prestress, scaled)."""
-        mat, p = self.problem.material, self.params
-        return (
-            p.viscous_scale * mat.viscous * self.gram + p.kelvin_voigt_scale * mat.kelvin_voigt * self.linear_stiffness
-        ).tocsr()
+def tangent_solver(model, z, S, ck):
+    """Solver of ``(S + ck dF/dz) dz = r`` for a Berger, FvK or linear structure."""
+    if isinstance(model, BergerMembrane):
+        return berger_tangent_solver(model, z, S, ck)
+    if isinstance(model, FvKMembrane):
+        return fvk_tangent_solver(model, z, S, ck)
+    return model.tangent_solver(z, S, ck)
 
 
 @dataclass(frozen=True)
@@ -279,7 +190,7 @@ def integrate(
                 zf = (1 - af) * z1 + af * z
                 r = M @ ((1 - am) * a1 + am * a) + D @ ((1 - af) * v1 + af * v) + structure.force(zf) - pf
                 if solver is None:
-                    solver, facts = structure.tangent_solver(zf, S, ck), facts + 1
+                    solver, facts = tangent_solver(structure, zf, S, ck), facts + 1
                 dz = solver(-r)
                 z1 = z1 + dz
                 iters += 1

@@ -1,21 +1,14 @@
-"""What every load estimator consumes and returns.
-
-* :class:`Measurements`: sampled stretch-sensor outputs (simulated or measured), NaN where a
-  sample is missing.
-* :class:`IdentificationResult`: the estimated load and deflection histories, the lift with
-  its 1-sigma band when the method provides one, and timing.
-"""
+"""Sampled sensor series, simulated or measured: :class:`Measurements`."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 
 from wingopt.errors import InputError
 
-__all__ = ["Measurements", "IdentificationResult"]
+__all__ = ["Measurements"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,51 +56,3 @@ class Measurements:
     def missing(self) -> np.ndarray:
         """Boolean ``(N,)``: rows with at least one missing value."""
         return np.isnan(self.values).any(axis=1)
-
-
-@dataclass(eq=False)
-class IdentificationResult:
-    """Output of a load estimator on one data record.
-
-    Attributes
-    ----------
-    method : str
-        ``"mhe"``, ``"jekf"``, ...
-    t : ndarray (N,)
-        Times of the estimates.
-    load : ndarray (N, n_load)
-        Load coefficient estimates (in the estimator's load space) at each time.
-    deflection : ndarray (N, n)
-        Deflection coefficient estimates at each time.
-    lift : ndarray (N,)
-        ``∫ P_hat`` at each time, N.
-    lift_std : ndarray (N,) or None
-        1-sigma of the lift when the method gives a posterior covariance.
-    regularization : float
-        The lambda used.
-    wall_s : float
-        Wall time of the estimation (s).
-    info : dict
-        Method-specific diagnostics (iterations, solver statuses, lambda rule, ...).
-    load_space : TensorSpace or None
-        Basis of the ``load`` coefficients; ``None`` means the model's deflection basis.
-    """
-
-    method: str
-    t: np.ndarray
-    load: np.ndarray
-    deflection: np.ndarray
-    lift: np.ndarray
-    lift_std: np.ndarray | None = None
-    regularization: float = float("nan")
-    wall_s: float = 0.0
-    info: dict[str, Any] = field(default_factory=dict)
-    load_space: Any = None
-
-    @property
-    def final_load(self) -> np.ndarray:
-        return self.load[-1]
-
-    @property
-    def final_deflection(self) -> np.ndarray:
-        return self.deflection[-1]

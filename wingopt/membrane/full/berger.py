@@ -17,69 +17,20 @@ the 1-D eigenvectors ``Kx Vx = Mx Vx diag(lx)`` give ``V = Vx⊗Vy`` with ``V^T 
 ``V^T Gx V = diag(lx⊗1)``, ``V^T Gy V = diag(1⊗ly)`` — for *every* pair of tensions. In
 ``z = V q`` the Berger model is ``n`` damped oscillators coupled only through the two scalars
 ``Tx, Ty``, and the mode shapes do not depend on the parameters. Time stepping and parameter
-sensitivities (:mod:`wingopt.membrane.berger_sim`) therefore cost O(n) per step.
+sensitivities (:mod:`wingopt.membrane.full.integrator`) therefore cost O(n) per step.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from functools import cached_property
-
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from wingopt.errors import InputError, SolverError
+from wingopt.membrane.full.operators import PrestressedOperators
 from wingopt.membrane.model import MembraneModel
-from wingopt.membrane.nonlinear import MembraneParameters, PrestressedOperators, membrane_stiffness
+from wingopt.membrane.parameters import MembraneParameters, membrane_stiffness
 
-__all__ = ["BergerMembrane", "SeparableModes"]
-
-
-@dataclass(frozen=True, eq=False)
-class SeparableModes:
-    """``V = Vx⊗Vy`` (M-orthonormal) and the 1-D eigenvalues ``lx, ly`` of ``Gx, Gy`` against ``M``."""
-
-    vx: np.ndarray
-    vy: np.ndarray
-    lam_x: np.ndarray  # (n,) eigenvalue of Gx for each 2-D mode (lx_i repeated over j)
-    lam_y: np.ndarray
-    mx: np.ndarray  # 1-D Gram matrices (dense), for q = V^T M z
-    my: np.ndarray
-
-    @classmethod
-    def build(cls, space) -> SeparableModes:
-        mx, kx = space.bx.gram(0, 0).toarray(), space.bx.gram(1, 1).toarray()
-        my, ky = space.by.gram(0, 0).toarray(), space.by.gram(1, 1).toarray()
-        lx, vx = sla.eigh(kx, mx)
-        ly, vy = sla.eigh(ky, my)
-        return cls(vx, vy, np.repeat(lx, ly.size), np.tile(ly, lx.size), mx, my)
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        return self.vx.shape[0], self.vy.shape[0]
-
-    def _apply(self, left: np.ndarray, right: np.ndarray, a: np.ndarray) -> np.ndarray:
-        """``(left ⊗ right) a`` for ``a`` of shape ``(n,)`` or ``(n, k)`` (sum factorisation)."""
-        nx, ny = left.shape[1], right.shape[1]
-        if a.ndim == 1:
-            return (left @ a.reshape(nx, ny) @ right.T).ravel()
-        k = a.shape[1]
-        X = (left @ a.reshape(nx, ny * k)).reshape(left.shape[0], ny, k)
-        return np.einsum("jb,abk->ajk", right, X).reshape(left.shape[0] * right.shape[0], k)
-
-    def to_field(self, q: np.ndarray) -> np.ndarray:
-        """``z = V q`` for ``q`` of shape ``(n,)`` or ``(n, k)``."""
-        return self._apply(self.vx, self.vy, q)
-
-    def to_modal(self, z: np.ndarray) -> np.ndarray:
-        """``q = V^T M z`` (the M-orthogonal projection) for ``(n,)`` or ``(n, k)``."""
-        return self._apply(self.vx.T @ self.mx, self.vy.T @ self.my, z)
-
-    def to_modal_force(self, p: np.ndarray) -> np.ndarray:
-        """``V^T p`` for a force vector ``p`` (``(n,)`` or ``(n, k)``)."""
-        return self._apply(self.vx.T, self.vy.T, p)
+__all__ = ["BergerMembrane"]
 
 
 class BergerMembrane(PrestressedOperators):
@@ -131,13 +82,17 @@ class BergerMembrane(PrestressedOperators):
             other.__dict__.pop(key, None)
         return other
 
-    # -- operators ------------------------------------------------------------------------------
-
-    @cached_property
-    def modes(self) -> SeparableModes:
-        return SeparableModes.build(self.space)
-
     # -- force and derivatives ------------------------------------------------------------------
+    def remainder(self, q: np.ndarray) -> np.ndarray:
+        """Modal stretch force ``(dTx(q) lx + dTy(q) ly) q``: the force less its prestress part."""
+        m, C, nu, g = self.modes, self.C, self.nu, self.stretch_gain
+        sx, sy = np.sum(m.lam_x * q * q) / (2 * self.area), np.sum(m.lam_y * q * q) / (2 * self.area)
+        return (g * C * (sx + nu * sy) * m.lam_x + g * C * (sy + nu * sx) * m.lam_y) * q
+
+    def equilibrium(self, f: np.ndarray) -> np.ndarray:
+        """Static deflection under load coefficients ``f`` (the forward-model protocol)."""
+        return self.static(self.gram @ np.asarray(f, float))
+
     def stretch(self, z: np.ndarray) -> tuple[float, float]:
         """Mean stretches ``s_x, s_y`` of the deflection ``z``."""
         return float(z @ (self.gx @ z)) / (2 * self.area), float(z @ (self.gy @ z)) / (2 * self.area)
@@ -165,39 +120,6 @@ class BergerMembrane(PrestressedOperators):
         """Exact tangent ``dF/dz`` as a dense matrix (for checks; use :meth:`tangent_parts`)."""
         S, U, B = self.tangent_parts(z)
         return S.toarray() + U @ B @ U.T
-
-    def tangent_solver(self, z: np.ndarray, S0, ck: float):
-        """Solver of ``(S0 + ck dF/dz) dz = r``: sparse LU plus a rank-2 Woodbury correction."""
-        S, U, B = self.tangent_parts(z)
-        lu = spla.splu((S0 + ck * S).tocsc())
-        AU = lu.solve(U)
-        cap = np.linalg.inv(ck * B) + U.T @ AU
-
-        def solve(r):
-            y = lu.solve(r)
-            return y - AU @ np.linalg.solve(cap, U.T @ y)
-
-        return solve
-
-    def parameter_jacobian(self, z: np.ndarray, zdot: np.ndarray | None = None) -> np.ndarray:
-        """``d(D z' + F(z))/d(eps0_x, eps0_y, viscous_scale, kelvin_voigt_scale)``, shape ``(n, 4)``.
-
-        The prestrains enter the tensions (``dTx/deps0_x = C``, ``dTy/deps0_x = C nu``) and the
-        Kelvin–Voigt term; the damping scales enter ``D`` linearly.
-        """
-        gz, hz = self.gx @ z, self.gy @ z
-        C, nu, mat, p = self.C, self.nu, self.problem.material, self.params
-        out = np.zeros((self.n, 4))
-        out[:, 0] = C * (gz + nu * hz)
-        out[:, 1] = C * (nu * gz + hz)
-        if zdot is not None:
-            gv, hv = self.gx @ zdot, self.gy @ zdot
-            kv = p.kelvin_voigt_scale * mat.kelvin_voigt
-            out[:, 0] += kv * C * (gv + nu * hv)
-            out[:, 1] += kv * C * (nu * gv + hv)
-            out[:, 2] = mat.viscous * (self.gram @ zdot)
-            out[:, 3] = mat.kelvin_voigt * (self.linear_stiffness @ zdot)
-        return out
 
     # -- statics --------------------------------------------------------------------------------
     def static(self, p: np.ndarray, tol: float = 1e-12, max_iter: int = 100) -> np.ndarray:

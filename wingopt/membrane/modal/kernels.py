@@ -2,9 +2,9 @@
 
 :func:`fvk_trajectory` and :func:`fvk_tangent` integrate a whole record (the batch estimator);
 :func:`fvk_step_tangent` one sample with the velocity tangents too (the streaming EKF,
-:class:`~wingopt.estimation.streaming.fvk_step.FvKSample`). Tangents are mode-major ``(m, P)``.
+:class:`~wingopt.membrane.modal.fvk_step.FvKSample`). Tangents are mode-major ``(m, P)``.
 
-The integrator is :class:`~wingopt.estimation.realistic.fvk_model.FvKModal`'s (exact damped
+The integrator is :class:`~wingopt.membrane.modal.fvk.FvKModal`'s (exact damped
 oscillator per mode for a frozen stiffness, predictor-corrector on the secant stiffness and the
 off-diagonal cubic force), step for step and formula for formula; the NumPy loops there stay the
 reference (complex-step batches) and the tests hold the two together to

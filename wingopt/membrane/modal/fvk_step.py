@@ -1,10 +1,10 @@
 """One sample of the cubic modal FvK membrane and its exact tangent, for the streaming (EKF) estimator.
 
-The map is :meth:`~wingopt.estimation.realistic.fvk_model.FvKModal.simulate` over one sample (the
+The map is :meth:`~wingopt.membrane.modal.fvk.FvKModal.simulate` over one sample (the
 batch estimator's integrator, predictor-corrector on the secant stiffness and the off-diagonal cubic
-force), run by the compiled sub-step of :mod:`~wingopt.estimation.realistic.fvk_kernels`; its
+force), run by the compiled sub-step of :mod:`~wingopt.membrane.modal.kernels`; its
 tangent is that kernel's. Same interface as
-:class:`~wingopt.estimation.streaming.berger_step.BergerSample`: directions are rows,
+:class:`~wingopt.membrane.modal.berger_step.BergerSample`: directions are rows,
 ``dQ[j, i] = d q_i / d theta_j``; rows ``load_rows`` act through the modal force, rows
 ``par_rows`` through ``d ex, d ey, d damping``.
 """
@@ -14,9 +14,9 @@ from __future__ import annotations
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.realistic.fvk_kernels import fvk_step_tangent
-from wingopt.estimation.realistic.fvk_model import FvKModal
-from wingopt.estimation.realistic.tangent import prestress_terms
+from wingopt.membrane.modal.fvk import FvKModal
+from wingopt.membrane.modal.kernels import fvk_step_tangent
+from wingopt.membrane.modal.oscillator import prestress_terms
 
 __all__ = ["FvKSample"]
 

@@ -1,0 +1,55 @@
+"""The Galerkin tensor of the Föppl–von Kármán membrane's cubic force on a few deflection shapes.
+
+The FvK in-plane problem is linear, so ``u, v`` are quadratic in ``w`` and the out-of-plane force
+is exactly cubic: ``F(z) = K_T0 z + N(z)``, ``N`` homogeneous of degree 3. On the ``r`` lowest
+modes ``Phi`` (M-orthonormal, ``K_T0`` and ``D`` diagonal) the Galerkin projection
+``Phi^T N(Phi a) = B(a, a, a)`` is a symmetric cubic form whose tensor is computed once from
+``r^2`` in-plane solves. The modal FvK model (:class:`~wingopt.membrane.modal.fvk.FvKModal`) keeps
+all its modes: the ``r`` lowest carry the exact cubic stiffness, the others respond linearly
+(prestress tension only). As ``r -> n`` it is the FvK model exactly; the truncation error is measured in the docs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wingopt.membrane.full.fvk import FvKMembrane
+
+__all__ = ["cubic_tensor"]
+
+
+def cubic_tensor(fvk: FvKMembrane, shapes: np.ndarray) -> np.ndarray:
+    """Symmetrised ``B[i, (j, k, l)]`` ``(r, r^3)`` with ``shapes^T N(shapes a) = B (a⊗a⊗a)``.
+
+    ``shapes`` ``(n, r)``: coefficient vectors of any ``r`` deflection shapes of ``fvk``'s space
+    (``r^2 / 2`` in-plane solves). The tensor does not depend on the prestrains or the damping.
+    """
+    r = shapes.shape[1]
+    o, C, nu, W = fvk.ops, fvk.C, fvk.nu, fvk.ops.weights
+    G = 0.5 * C * (1 - nu)
+    gx, gy = np.array([o.gradient(shapes[:, j]) for j in range(r)]).transpose(1, 0, 2)  # (r, nq) each
+    lu = fvk._inplane[1]
+    n = fvk.n
+    # Quadratic strains of each ordered pair (j, k): w = phi_j + phi_k contributes a_j a_k (...).
+    ex = 0.5 * gx[:, None, :] * gx[None, :, :]
+    ey = 0.5 * gy[:, None, :] * gy[None, :, :]
+    gg = 0.5 * (gx[:, None, :] * gy[None, :, :] + gy[:, None, :] * gx[None, :, :])
+    S = np.empty((3, r, r, W.size))
+    for j in range(r):
+        for k in range(j, r):
+            nx, ny, nxy = C * (ex[j, k] + nu * ey[j, k]), C * (ey[j, k] + nu * ex[j, k]), G * gg[j, k]
+            rhs = np.concatenate([o.divergence(W * nx, W * nxy), o.divergence(W * nxy, W * ny)])
+            uv = -lu.solve(rhs)
+            ux, uy = o.gradient(uv[:n])
+            vx, vy = o.gradient(uv[n:])
+            exj, eyj, gj = ex[j, k] + ux, ey[j, k] + vy, gg[j, k] + uy + vx
+            S[:, j, k] = S[:, k, j] = (C * (exj + nu * eyj), C * (eyj + nu * exj), G * gj)
+    # B[j, k, i, l] = ∫ Sx_jk phi_i,x phi_l,x + Sy_jk phi_i,y phi_l,y + Sxy_jk (phi_i,x phi_l,y + phi_i,y phi_l,x)
+    Sw = S.reshape(3, r * r, -1) * W
+    B = Sw[0] @ np.einsum("iq,lq->qil", gx, gx).reshape(W.size, r * r)
+    B += Sw[1] @ np.einsum("iq,lq->qil", gy, gy).reshape(W.size, r * r)
+    B += Sw[2] @ (np.einsum("iq,lq->qil", gx, gy) + np.einsum("iq,lq->qil", gy, gx)).reshape(W.size, r * r)
+    B = B.reshape(r, r, r, r).transpose(2, 0, 1, 3)  # (i, j, k, l)
+    perms = ((1, 2, 3), (1, 3, 2), (2, 1, 3), (2, 3, 1), (3, 1, 2), (3, 2, 1))
+    B = sum(B.transpose((0,) + p) for p in perms) / 6.0
+    return B.reshape(r, r**3)
