@@ -172,9 +172,8 @@ class RecordProblem:
         amp = self.amplitude(ph["g"])[:-1]  # load held over each interval
         forces = amp[:, :, None] * (ph["c"] @ self._force_shapes)[None]
         bm = self.model
-        if self.nonlinear:
-            return bm.simulate(ph["q0"], ph["v0"], forces, ph["prestrain_x"], ph["prestrain_y"], ph["damping"])
-        return bm.simulate(ph["q0"], ph["v0"], forces, ph["prestrain_x"], ph["prestrain_y"], ph["damping"], nonlinear=False)
+        par = (ph["prestrain_x"], ph["prestrain_y"], ph["damping"])
+        return bm.simulate(ph["q0"], ph["v0"], forces, *par, nonlinear=self.nonlinear)
 
     # -- cost ------------------------------------------------------------------------------
     @cached_property
