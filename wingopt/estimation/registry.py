@@ -105,7 +105,10 @@ REGISTRY: dict[tuple[str, str, bool], EstimatorSpec] = {
         EstimatorSpec(
             "mhe", "linear", False, _ALWAYS | _MHE, "moving-horizon Tikhonov, linear membrane", _MHE_REQUIRES
         ),
-        EstimatorSpec("jekf-seed", "linear", False, _ALWAYS | {"lam", "modes"}, "the seed's joint EKF"),
+        # the seed's filter: R = 1e-4 as the seed set it, so a noise level is not one of its options
+        EstimatorSpec(
+            "jekf-seed", "linear", False, frozenset({"initial_load", "lam", "modes"}), "the seed's joint EKF"
+        ),
         EstimatorSpec("jekf-tuned", "linear", False, _ALWAYS | {"lam", "modes"}, "joint EKF, lambda from the data"),
         EstimatorSpec("batch", "berger", False, _ALWAYS | {"modes", "load_model"}, "whole-record fit, Berger"),
         EstimatorSpec("batch", "fvk", False, _ALWAYS | {"modes", "load_model"}, "whole-record fit, FvK membrane"),

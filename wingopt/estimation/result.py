@@ -1,8 +1,9 @@
-"""What every load estimator returns: :class:`IdentificationResult`.
+"""What every load estimator returns: :class:`IdentificationResult`, and :class:`Estimate` per sample.
 
 The estimated load and deflection histories, the lift with its 1-sigma band when the method
 provides one, timing and the estimator's diagnostics (what it consumes is
-:class:`wingopt.measurements.Measurements`).
+:class:`wingopt.measurements.Measurements`). A streaming estimator also returns one
+:class:`Estimate` per sample it is pushed.
 """
 
 from __future__ import annotations
@@ -12,7 +13,37 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["IdentificationResult"]
+__all__ = ["IdentificationResult", "Estimate"]
+
+
+@dataclass(frozen=True, eq=False)
+class Estimate:
+    """The estimate after one sample.
+
+    Attributes
+    ----------
+    k, t : int, float
+        Sample index (from 0) and time (s).
+    lift, lift_std : float
+        Lift (N) and its 1-sigma (N); NaN and inf while ``phase == "waiting"``.
+    load : ndarray or None
+        Load coefficients in the load space (``None`` while waiting).
+    chi2_per_datum : float
+        Misfit per datum of the window (1 for data explained to the noise level).
+    adequate : bool
+        Misfit within the chi-square bound (see the module docstring).
+    phase : str
+        ``waiting``, ``provisional``, ``startup`` (the sample that ran the batch start-up) or ``tracking``.
+    """
+
+    k: int
+    t: float
+    lift: float
+    lift_std: float
+    load: np.ndarray | None
+    chi2_per_datum: float
+    adequate: bool
+    phase: str
 
 
 @dataclass(eq=False)

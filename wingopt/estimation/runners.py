@@ -18,14 +18,15 @@ from wingopt.errors import InputError
 from wingopt.estimation.lambda_rules import resolve as resolve_rule
 from wingopt.estimation.mhe import STATE_PRIOR_EVIDENCE, MHESettings, mhe_identify
 from wingopt.estimation.options import IdentifyOptions
+from wingopt.estimation.protocol import Estimator, RecordEstimator, StreamEstimator
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify
 from wingopt.estimation.realistic.mhe_check import check_mhe_result
-from wingopt.estimation.registry import EstimatorSpec
+from wingopt.estimation.registry import EstimatorSpec, check_options
 from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements import Measurements
 from wingopt.membrane import MembraneModel
 
-__all__ = ["mhe_settings", "batch_settings", "ekf_settings", "run_record", "build_stream", "model_form_band"]
+__all__ = ["mhe_settings", "batch_settings", "ekf_settings", "build", "run_record", "build_stream", "model_form_band"]
 
 log = logging.getLogger(__name__)
 
@@ -124,6 +125,29 @@ def run_record(
         resolve_rule(lam.rule, "jekf-seed")  # the seed's filter has its one rule: refuse any other name
     variant = "tuned" if spec.method == "jekf-tuned" else "seed"
     return jekf.identify(model, measurements, variant=variant, truth=truth, initial_load=p0, **kw)
+
+
+def build(
+    spec: EstimatorSpec,
+    model: MembraneModel,
+    options: IdentifyOptions | None = None,
+    *,
+    truth=None,
+    settings=None,
+    keep: bool = True,
+) -> Estimator:
+    """Any estimator of the registry behind the one protocol (:mod:`wingopt.estimation.protocol`).
+
+    ``truth`` and ``settings`` as :func:`run_record` (record estimators); ``keep``: a stream keeps its
+    estimates for ``result()``.
+    """
+    options = IdentifyOptions() if options is None else options
+    check_options(spec, options)
+    if spec.stream:
+        return StreamEstimator(build_stream(spec, model, options), f"{spec.method}-stream", keep)
+    return RecordEstimator(
+        lambda meas: run_record(spec, model, meas, options, truth=truth, settings=settings), model.problem.sensor_names
+    )
 
 
 def build_stream(spec: EstimatorSpec, model: MembraneModel, options: IdentifyOptions | None = None):

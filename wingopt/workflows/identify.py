@@ -31,7 +31,7 @@ from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
 from wingopt.estimation.options import IdentifyOptions
 from wingopt.estimation.registry import check_options, resolve
 from wingopt.estimation.result import IdentificationResult
-from wingopt.estimation.runners import run_record
+from wingopt.estimation.runners import build
 from wingopt.measurements import Measurements, read_measurements
 from wingopt.membrane import MembraneModel, TruthRecord
 from wingopt.problem import load_problem
@@ -271,7 +271,7 @@ def identify(
     prior = opts.initial_load if opts.initial_load is not None else problem.identification.initial_load
     warnings = sanity.record_checks(membrane, meas, prior)
     t0 = time.perf_counter()
-    result = run_record(spec, membrane, meas, opts, truth=case, settings=settings)
+    result = build(spec, membrane, opts, truth=case, settings=settings).run(meas)
     wall = time.perf_counter() - t0
     warnings += sanity.fit_checks(membrane, meas, result, sanity_sigma(meas, result))
     warnings += [w for w in result.info.get("warnings", []) if w not in warnings]  # the estimator's adequacy

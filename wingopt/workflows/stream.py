@@ -154,8 +154,8 @@ def follow(
         ``samples``, ``lift_N``, ``lift_std_N``, ``stopped``, ``latency``, ``warnings``, ...
     """
     from wingopt.estimation.options import IdentifyOptions
-    from wingopt.estimation.registry import check_options, resolve
-    from wingopt.estimation.runners import build_stream
+    from wingopt.estimation.registry import resolve
+    from wingopt.estimation.runners import build
     from wingopt.measurements.csv_stream import CsvRowParser
     from wingopt.membrane import MembraneModel
     from wingopt.results import ResultDirectory, to_jsonable, write_json
@@ -163,9 +163,8 @@ def follow(
 
     spec = resolve(stream=True) if spec is None else spec
     options = IdentifyOptions() if options is None else options
-    check_options(spec, options)
     stop = {} if stop is None else stop
-    est = build_stream(spec, MembraneModel.from_problem(problem), options)
+    est = build(spec, MembraneModel.from_problem(problem), options, keep=False)
     method = f"{spec.method}-stream"
     name = source or "<stdin>"
     parser = CsvRowParser(problem.sensor_names, name)

@@ -7,8 +7,9 @@ Berger membrane: an extended Kalman filter with :mod:`~.berger_step`, :mod:`~.no
 :mod:`~.running_noise`).
 """
 
+from wingopt.estimation.result import Estimate
 from wingopt.estimation.streaming.estimator import StreamingEstimator
 from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator, NonlinearStreamSettings
-from wingopt.estimation.streaming.types import Estimate, StreamSettings
+from wingopt.estimation.streaming.types import StreamSettings
 
 __all__ = ["StreamingEstimator", "StreamSettings", "Estimate", "NonlinearStreamingEstimator", "NonlinearStreamSettings"]

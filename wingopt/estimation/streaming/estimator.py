@@ -55,8 +55,9 @@ from wingopt.estimation.mhe.consistency import SIGNIFICANCE
 from wingopt.estimation.mhe.model import MHEModel
 from wingopt.estimation.mhe.start import smooth_load_shapes
 from wingopt.estimation.noise import resolve_noise_std
+from wingopt.estimation.result import Estimate
 from wingopt.estimation.streaming.rows import LinearRows, RtiNormalEquations
-from wingopt.estimation.streaming.types import Estimate, SampleClock, StreamSettings
+from wingopt.estimation.streaming.types import SampleClock, StreamSettings
 from wingopt.measurements.series import Measurements
 from wingopt.membrane import MembraneModel, bubble
 

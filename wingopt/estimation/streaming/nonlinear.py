@@ -64,9 +64,10 @@ from wingopt.estimation.noise import MHE_NOISE, resolve_noise_std
 from wingopt.estimation.realistic.load_model import LoadShapes
 from wingopt.estimation.realistic.model_form import prestrain_std_with_model_form
 from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior
+from wingopt.estimation.result import Estimate
 from wingopt.estimation.streaming.nonlinear_start import TOLERANCE, batch_start
 from wingopt.estimation.streaming.running_noise import RunningNoise
-from wingopt.estimation.streaming.types import Estimate, NonlinearStreamSettings, SampleClock
+from wingopt.estimation.streaming.types import NonlinearStreamSettings, SampleClock
 from wingopt.membrane import MembraneModel, bubble
 from wingopt.membrane.modal.berger import BergerModal
 from wingopt.membrane.modal.berger_step import BergerSample

@@ -9,7 +9,7 @@ import numpy as np
 from wingopt.errors import InputError
 from wingopt.estimation.mhe import MHESettings
 
-__all__ = ["StreamSettings", "NonlinearStreamSettings", "Estimate", "SampleClock"]
+__all__ = ["StreamSettings", "NonlinearStreamSettings", "SampleClock"]
 
 
 @dataclass(frozen=True)
@@ -59,36 +59,6 @@ class StreamSettings:
             )
         if not self.trust > 0:
             raise InputError(f"streaming trust = {self.trust!r}: expected a positive number")
-
-
-@dataclass(frozen=True, eq=False)
-class Estimate:
-    """The estimate after one sample.
-
-    Attributes
-    ----------
-    k, t : int, float
-        Sample index (from 0) and time (s).
-    lift, lift_std : float
-        Lift (N) and its 1-sigma (N); NaN and inf while ``phase == "waiting"``.
-    load : ndarray or None
-        Load coefficients in the load space (``None`` while waiting).
-    chi2_per_datum : float
-        Misfit per datum of the window (1 for data explained to the noise level).
-    adequate : bool
-        Misfit within the chi-square bound (see the module docstring).
-    phase : str
-        ``waiting``, ``provisional``, ``startup`` (the sample that ran the batch start-up) or ``tracking``.
-    """
-
-    k: int
-    t: float
-    lift: float
-    lift_std: float
-    load: np.ndarray | None
-    chi2_per_datum: float
-    adequate: bool
-    phase: str
 
 
 @dataclass(frozen=True)
