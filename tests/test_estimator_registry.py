@@ -129,8 +129,9 @@ def test_auto_resolves_to_the_documented_pairs():
 
 def test_the_command_line_refuses_an_unused_option_in_one_line(tmp_path, capsys):
     argv = ["identify", "membrane", "--data", "examples/data/synthetic_tunnel_300Hz.csv", "--out", str(tmp_path / "o")]
-    for extra, flag in ((["--window", "0.1s"], "--window"), (["--lambda", "1e-6"], "--lambda"),
-                        (["--backend", "ipopt"], "--backend"), (["--state-prior", "0.1"], "--state-prior")):  # fmt: skip
+    cases = [(["--window", "0.1s"], "--window"), (["--lambda", "1e-6"], "--lambda")]
+    cases += [(["--backend", "ipopt"], "--backend"), (["--state-prior", "0.1"], "--state-prior")]
+    for extra, flag in cases:
         assert main(argv + extra) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and flag in err and "batch estimator with the fvk membrane" in err

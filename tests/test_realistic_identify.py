@@ -16,7 +16,7 @@ import pytest
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify
 from wingopt.estimation.realistic.mhe_check import check_mhe_result
 from wingopt.membrane import MembraneModel, add_noise
-from wingopt.membrane.loads import ISSUE_GUST
+from wingopt.membrane.loads import Gust
 from wingopt.problem import load_problem
 from wingopt.workflows.protocols import simulate_case
 from wingopt.workflows.studies import load_field, run_method
@@ -33,7 +33,7 @@ def _problem_model():
 @functools.cache
 def _clean(load, nonlinear=True, prestrain=None, damping=1.0, gust=False):
     problem, _ = _problem_model()
-    gust = ISSUE_GUST if gust else None
+    gust = Gust() if gust else None
     truth = "berger" if nonlinear else "linear"
     return simulate_case(problem, load, 0.0, None, truth=truth, prestrain=prestrain, damping=damping, gust=gust)
 

@@ -18,7 +18,8 @@ from threadpoolctl import threadpool_limits
 
 from wingopt.cli import main
 from wingopt.errors import InputError
-from wingopt.workflows.studies import CleanCases, evaluate, protocol_sign, run_method
+from wingopt.workflows.protocols import simulate_case
+from wingopt.workflows.studies import evaluate, protocol_sign, run_method
 from wingopt.workflows.sweep.engine import Engine, EngineSettings, SweepTask, blas_threads
 from wingopt.workflows.sweep.records import TIMING_FIELDS, RecordLog, by_key, read_records
 from wingopt.workflows.sweep.run import run_records, run_sweep, sweep_tasks
@@ -86,7 +87,9 @@ def test_serial_and_cluster_records_are_identical_and_match_the_direct_computati
     assert results_only(r1) == results_only(r2)  # identical numbers, to the last bit
     # The pre-engine path (CleanCases + run_method + evaluate, as compare's fork pool ran it).
     run = spec.runs[0]
-    case = CleanCases(run.truth_problem, run.truth_nodes, run.t_end).case("L1", 0.01, run.params["seed"])
+    case = simulate_case(
+        run.truth_problem, "L1", 0.01, run.params["seed"], run.truth_nodes, run.t_end, tell_noise=False
+    )
     from wingopt.membrane import MembraneModel
 
     model = MembraneModel.from_problem(run.problem)

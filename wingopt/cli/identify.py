@@ -57,12 +57,6 @@ def parse_noise(text: str) -> float:
     return NoiseLevel.from_percent(value).fraction
 
 
-def _mesh(text):
-    from wingopt.problem import parse_mesh
-
-    return parse_mesh(text)
-
-
 def register(sub, common) -> None:
     p = sub.add_parser(
         "identify",
@@ -252,9 +246,9 @@ def print_warnings(command: str, summary: dict) -> None:
 
 
 def _gust():
-    from wingopt.membrane.loads import ISSUE_GUST
+    from wingopt.membrane.loads import Gust
 
-    return ISSUE_GUST
+    return Gust()
 
 
 def _print(summary: dict, args) -> None:

@@ -22,7 +22,6 @@ truth records (:mod:`wingopt.membrane.truth`), estimators and designs consume th
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -207,10 +206,3 @@ def forward_model(
     if physics == "fvk":
         return FullOrder(physics, FvKMembrane.from_model(model, par), substeps)
     return FullOrder(physics, BergerMembrane(model, par), substeps)
-
-
-def with_physics(fwd: FullOrder | Reduced, physics: str) -> FullOrder | Reduced:
-    """The same model with another physics of the same structure (``linear`` from either)."""
-    if physics not in PHYSICS:
-        raise InputError(f"physics = {physics!r}: expected one of {', '.join(PHYSICS)}")
-    return dataclasses.replace(fwd, physics=physics)

@@ -13,7 +13,7 @@ import numpy as np
 
 from wingopt.errors import InputError
 
-__all__ = ["PressureLoad", "load_case", "LOAD_CASES", "bubble", "leading_edge_load", "Gust", "ISSUE_GUST"]
+__all__ = ["PressureLoad", "load_case", "LOAD_CASES", "bubble", "leading_edge_load", "Gust"]
 
 LOAD_CASES = ("L1", "L2", "L3", "consistency", "LE")
 """Load cases by name: the seed's L1–L3 and consistency rectangle, and the leading-edge case LE."""
@@ -98,10 +98,11 @@ def leading_edge_load(width: float, height: float, amplitude: float = 200.0) -> 
 class Gust:
     """Load factor ``1 + amplitude (1 - cos(2 pi (t - start)/duration))`` on ``[start, start + duration]``.
 
-    The default peaks at +60 % of the steady load 0.1 s after the start.
+    The default (``wingopt identify --gust``) starts at 0.4 s, after the protocol bubble's transient,
+    and peaks at +60 % of the steady load 0.1 s later.
     """
 
-    start: float = 0.3
+    start: float = 0.4
     duration: float = 0.2
     amplitude: float = 0.3
 
@@ -118,7 +119,3 @@ class Gust:
         s = (t - self.start) / self.duration
         inside = (s >= 0) & (s <= 1)
         return np.where(inside, 1.0 + self.amplitude * (1.0 - np.cos(2 * np.pi * s)), 1.0)
-
-
-ISSUE_GUST = Gust(start=0.4, duration=0.2, amplitude=0.3)
-"""The gust of the mismatch study: 1-cos, +60 % over 0.2 s, starting at 0.4 s (after the bubble's transient)."""

@@ -27,11 +27,9 @@ from wingopt.fe import integrate
 from wingopt.measurements.series import Measurements
 from wingopt.membrane import MembraneModel, TruthRecord
 from wingopt.problem.membrane import MembraneProblem, StretchSensorSpec
-from wingopt.workflows.protocols import TRUTH_NODES, simulate_case
 
 __all__ = [
     "CaseRecord",
-    "CleanCases",
     "evaluate",
     "load_field",
     "run_method",
@@ -66,35 +64,6 @@ def protocol_sign(load: str) -> float:
     whether the wing is loaded from below or above; it is not derived from the simulated truth.
     """
     return -1.0 if load == "consistency" else 1.0
-
-
-class CleanCases:
-    """Noise-free protocol runs, simulated once per load; :meth:`case` adds seeded noise.
-
-    ``tell_noise=False`` (default) leaves ``Measurements.noise_std`` empty, so estimators must
-    estimate the noise level from the data, as with measurements.
-    """
-
-    def __init__(
-        self,
-        problem: MembraneProblem,
-        truth_nodes: tuple[int, int] | None = TRUTH_NODES,
-        t_end: float = 1.0,
-        tell_noise: bool = False,
-    ):
-        self.problem, self.truth_nodes, self.t_end = problem, truth_nodes, t_end
-        # By default the estimators are not told the simulated noise level (they estimate it).
-        self.tell_noise = tell_noise
-        self._clean: dict[str, TruthRecord] = {}
-
-    def clean(self, load: str) -> TruthRecord:
-        if load not in self._clean:
-            self._clean[load] = simulate_case(self.problem, load, 0.0, None, self.truth_nodes, self.t_end)
-        return self._clean[load]
-
-    def case(self, load: str, noise: float, seed: int) -> TruthRecord:
-        """The protocol case with noise ``noise`` (fraction) and ``seed``; same as ``simulate_case``."""
-        return noisy_case(self.clean(load), noise, seed, self.tell_noise)
 
 
 def noisy_case(clean: TruthRecord, noise: float, seed: int, tell_noise: bool = False) -> TruthRecord:

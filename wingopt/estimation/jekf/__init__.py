@@ -25,7 +25,7 @@ baselines as the command line and the studies run them).
 
 from wingopt.estimation.jekf.batch import filter_record
 from wingopt.estimation.jekf.filter import JointEKF, joint_transition
-from wingopt.estimation.jekf.presets import DEFAULT_SEED_LAMBDA, VARIANTS, identify, jekf_identify
+from wingopt.estimation.jekf.presets import VARIANTS, identify, jekf_identify
 from wingopt.estimation.jekf.seed_lambda import LambdaSearch, seed_lambda
 from wingopt.estimation.jekf.settings import SEED_MEASUREMENT_VARIANCE, JEKFSettings
 from wingopt.estimation.jekf.tuning import DEFAULT_GRID, LAMBDA_RULES, LambdaSelection, select_lambda, tuned_identify
@@ -44,7 +44,6 @@ __all__ = [
     "tuned_identify",
     "identify",
     "VARIANTS",
-    "DEFAULT_SEED_LAMBDA",
     "DEFAULT_GRID",
     "LAMBDA_RULES",
 ]

@@ -25,16 +25,11 @@ from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements.series import Measurements
 from wingopt.membrane.model import MembraneModel
 
-__all__ = ["jekf_identify", "VARIANTS", "DEFAULT_SEED_LAMBDA", "identify", "cached_seed_lambda", "noise_free"]
+__all__ = ["jekf_identify", "VARIANTS", "identify", "cached_seed_lambda", "noise_free"]
 
 log = logging.getLogger(__name__)
 
 VARIANTS = ("seed", "tuned")
-
-
-DEFAULT_SEED_LAMBDA = 1.0e-12
-"""``lambda`` of the seed-faithful filter when there is no truth to tune it on (measured data): about what
-:func:`seed_lambda` finds on the noise-free L1 protocol (25x13 estimator, 49x25 truth)."""
 
 
 _SEED_CACHE: dict[Any, LambdaSearch] = {}
@@ -79,7 +74,7 @@ def identify(
     variant : {"seed", "tuned"}
         ``"seed"``: the seed-faithful filter (``R = 1e-4``, uniform ``initial_load`` prior, the
         bubble); ``lambda`` from :func:`seed_lambda` on the noise-free twin of ``truth`` (USES THE
-        TRUTH, as the seed did), or :data:`DEFAULT_SEED_LAMBDA` without a truth.
+        TRUTH, as the seed did); without a truth ``regularization`` must be given.
         ``"tuned"``: zero initial load, ``R`` from the data, ``lambda`` by the data-only ``rule``.
     truth : TruthRecord, optional
         The simulated case (only the seed variant uses it, and only to tune ``lambda``).
@@ -112,7 +107,10 @@ def identify(
             search = cached_seed_lambda(model, truth, settings, **kwargs)
             lam, source = search.regularization, "seed method: Nelder-Mead on the noise-free truth (uses the truth)"
         else:
-            lam, source, search = DEFAULT_SEED_LAMBDA, "default (no truth to tune on)", None
+            raise InputError(
+                "jekf-seed: the seed's filter tunes its lambda on the simulated truth; a measured record has none: "
+                "give --lambda, or use --method jekf-tuned (lambda from the data)"
+            )
         tune_s = time.perf_counter() - t0
         res = JointEKF(model, settings.replace(regularization=lam)).run(measurements)
         res.info.update(variant="seed", lambda_source=source, tuning_wall_s=tune_s)

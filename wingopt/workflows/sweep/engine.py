@@ -237,7 +237,7 @@ class Engine:
             missing = [k for k in t.shared if k not in shared]
             if missing:
                 raise InputError(f"task {t.key!r}: shared input {missing[0]!r} is not defined")
-        order = sorted(tasks, key=lambda t: -t.cost)
+        order = sorted(tasks, key=lambda t: t.cost)  # the cheapest first: results arrive early
         bar = self._bar(len(order), description)
         try:
             runner = self._run_serial if self.client is None else self._run_dask

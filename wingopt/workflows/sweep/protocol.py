@@ -17,6 +17,7 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
+from wingopt import resources
 from wingopt.errors import SolverError
 from wingopt.estimation.mhe import MHESettings
 from wingopt.membrane import MembraneModel, TruthRecord
@@ -47,12 +48,6 @@ __all__ = [
     "run_tasks",
     "consistency_rows",
 ]
-
-METHOD_COST = {"mhe": 1.0, "jekf-tuned": 65.0, "jekf-seed": 88.0, "jekf": 88.0}
-"""Relative CPU times on the protocol (25x13 estimator, 1 s; benchmarks/bench_sweep.py): the JEKFs dominate."""
-
-ORACLE_COST = 3.1
-"""An MHE run with its oracle-lambda search, relative to one without (measured as above)."""
 
 CONSISTENCY_LAYOUTS = (None, (4, 3), (8, 4))
 """The consistency study's sensor layouts: the problem's own, then 4x3 and 8x4 grids."""
@@ -101,10 +96,11 @@ def protocol_record(
     return {**rec.as_dict(), "params": params}
 
 
-def task_cost(method: str, model_nodes, t_end: float, oracle: bool) -> float:
-    """Relative run-time estimate (the engine submits the largest first)."""
-    c = METHOD_COST.get(method, 1.0) * (ORACLE_COST if oracle and method == "mhe" else 1.0)
-    return c * t_end * model_nodes[0] * model_nodes[1]
+def task_cost(method: str, model_nodes, t_end: float, oracle: bool, dt: float = 1e-3) -> float:
+    """Run-time estimate (s) of one run: the size estimate of :func:`wingopt.resources.estimate_identify`,
+    times the runs of the oracle-lambda grid (the engine submits the cheapest first: early results)."""
+    seconds = resources.estimate_identify(tuple(model_nodes), int(round(t_end / dt)) + 1, method=method).seconds
+    return seconds * (1 + len(ORACLE_OFFSETS) if oracle and method == "mhe" else 1)
 
 
 def protocol_tasks(
