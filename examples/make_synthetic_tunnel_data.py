@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from wingopt.fe import integrate
-from wingopt.membrane import MembraneModel, simulate_response
+from wingopt.membrane import MembraneModel, forward_model
 from wingopt.problem import load_problem
 
 OUT = Path(__file__).parent / "data" / "synthetic_tunnel_300Hz.csv"
@@ -53,7 +53,7 @@ def main(out: Path = OUT, seed: int = 2012) -> Path:
     truth = MembraneModel.from_problem(problem, (49, 25))
     f = truth.project(pressure(problem))
     dt = 1.0 / RATE_HZ
-    traj = simulate_response(truth, lambda t: f * min(1.0, t / RISE_S), t_end=DURATION_S, dt=dt)
+    traj = forward_model(truth, "linear").run(lambda t: f * min(1.0, t / RISE_S), DURATION_S, dt=dt)
     rng = np.random.default_rng(seed)
     sigma = NOISE * np.abs(traj.outputs).max(axis=0)
     values = traj.outputs + rng.standard_normal(traj.outputs.shape) * sigma

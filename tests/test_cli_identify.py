@@ -301,7 +301,7 @@ def test_identify_data_with_the_nonlinear_model(record, small_file, tmp_path, ca
     argv = ["identify", str(small_file), "--data", str(data), "--model", "nonlinear", "--out", str(out)]
     assert main(argv + ["--json", "--no-plots"]) == 0
     summary = json.loads(capsys.readouterr().out)
-    assert summary["method"] == "mhe" and summary["estimator"]["backend"].startswith("realistic")
+    assert summary["method"] == "batch" and summary["estimator"]["backend"].startswith("realistic")
     assert summary["estimator"]["membrane_selection"]["chosen"] == "linear" and summary["model"] == "linear"
     assert summary["dropped"] == []
     assert set(summary["parameters"]) == {"prestrain_x", "prestrain_y", "damping"}

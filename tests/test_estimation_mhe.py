@@ -85,7 +85,7 @@ def test_free_load_space_coupling_and_edge_load(small_model, membrane_problem):
     assert free.lift(one) == pytest.approx(membrane_problem.width * membrane_problem.height, rel=1e-12)
     # L3 is largest on the edge x = W: the fixed space cannot hold it, the free space can.
     L3 = load_case("L3", membrane_problem.width, membrane_problem.height)
-    from wingopt.workflows.protocols import relative_l2
+    from wingopt.membrane import relative_l2
 
     e_fixed = relative_l2(small_model.space, L3, fixed.field(fixed.project(L3)))
     e_free = relative_l2(small_model.space, L3, free.field(free.project(L3)))
@@ -262,7 +262,7 @@ def test_start_from_rest_without_deflection_prior(small_model, small_problem):
         meas = Measurements(traj.t, y, small_problem.sensor_names)
         s = MHESettings(window=100, stride=50, modes=20)
         res = mhe_identify(small_model, meas, s, initial_deflection=0.0)
-        from wingopt.workflows.protocols import relative_l2
+        from wingopt.membrane import relative_l2
         from wingopt.workflows.studies import load_field
 
         out[name] = (relative_l2(truth.space, load, load_field(res, small_model)), res.info["sign"])

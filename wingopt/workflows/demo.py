@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from wingopt import __version__
+from wingopt.estimation.options import IdentifyOptions
 from wingopt.results import ResultDirectory, write_json
 from wingopt.results.report import Report
 from wingopt.workflows.demo_real import REAL_MODELS, REAL_PRESTRAIN, real_rows, real_section, run_real_membrane
@@ -121,11 +122,11 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
                 run = identify(
                     membrane,
                     load=load,
-                    noise=cfg.noise,
+                    noise_percent=100 * cfg.noise,
                     seed=cfg.seed,
                     method=method,
                     t_end=cfg.identify_t_end,
-                    jekf_modes=cfg.jekf_modes,
+                    options=IdentifyOptions(modes=cfg.jekf_modes) if method != "mhe" else None,
                 )
                 write_identify_outputs(run, tmp / "identify" / f"{load}-{method}", plots=(method == "mhe"))
                 summary["identify"][load][method] = run.summary()

@@ -29,9 +29,8 @@ def run_real_membrane(membrane, cfg, out: Path, bar) -> dict:
         run = identify(
             membrane,
             load="L1",
-            noise=cfg.noise,
+            noise_percent=100 * cfg.noise,
             seed=cfg.seed,
-            method="mhe",
             model=model,
             truth="fvk",
             truth_prestrain=cfg.real_prestrain,
