@@ -15,11 +15,11 @@ from wingopt.design.information import InformationSettings, ModalSensitivity
 from wingopt.design.priors import gp_prior, smooth_loads, tikhonov_prior
 from wingopt.design.risk import BayesRisk
 from wingopt.design.selection import greedy, overlap_matrix, random_layouts, relax, round_weights, swap_improve
-from wingopt.design.toml_text import problem_text, read_problem_table, sensors_text
 from wingopt.errors import InputError
 from wingopt.membrane import MembraneModel, StretchSensors, load_case
-from wingopt.problem import load_problem
+from wingopt.problem import load_problem, read_problem_table
 from wingopt.problem.membrane import StretchSensorSpec
+from wingopt.problem.toml_text import problem_text, sensors_text
 
 
 @pytest.fixture(scope="module")

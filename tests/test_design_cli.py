@@ -64,3 +64,19 @@ def test_design_cli_montecarlo(tmp_path, capsys):
     assert 0 < min(mc["montecarlo"]) < 2
     assert main(args + ["--criterion", "a", "--montecarlo", "2", "--out", str(tmp_path / "x")]) == 2
     assert "montecarlo" in capsys.readouterr().err
+
+
+def test_write_problem_keeps_a_backup(tmp_path):
+    # --write-problem goes through results.write_text_atomic: an existing file is kept as NAME.bak.
+    from wingopt.errors import OutputError
+    from wingopt.results import write_text_atomic
+
+    path = tmp_path / "new.toml"
+    assert write_text_atomic(path, "a = 1\n", what="write-problem") == (path, None)
+    _, kept = write_text_atomic(path, "a = 2\n", what="write-problem")
+    assert kept == tmp_path / "new.toml.bak" and kept.read_text() == "a = 1\n" and path.read_text() == "a = 2\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["new.toml", "new.toml.bak"]  # no temporaries left
+    with pytest.raises(OutputError, match="write-problem.*is a directory"):
+        write_text_atomic(tmp_path, "x", what="write-problem")
+    with pytest.raises(OutputError, match="does not exist"):
+        write_text_atomic(tmp_path / "no" / "x.toml", "x", what="write-problem")

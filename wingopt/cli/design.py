@@ -3,18 +3,16 @@
 Writes into ``--out`` (atomically): ``summary.json`` (layout, predicted errors, relaxation bound and
 gap, baselines, ``warnings``), ``sensors.toml`` (the ``[[sensors]]`` tables to paste) and
 ``layout.png`` (the layout over the predicted error field); ``--write-problem NEW.toml`` writes the
-problem file with the designed sensors.
+problem file with the designed sensors (an existing file is kept as ``NEW.toml.bak``). It parses and
+calls :func:`wingopt.workflows.design.run_design`.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import os
-import tempfile
-from pathlib import Path
 
-from wingopt.errors import InputError, OutputError
+from wingopt.errors import InputError
 
 ORDER = 35
 
@@ -63,82 +61,45 @@ def register(sub, common) -> None:
     )
     p.add_argument("--allow-overlap", action="store_true", help="let chosen rectangles overlap")
     p.add_argument("--out", required=True, help="output directory (replaced atomically)")
-    p.add_argument("--write-problem", metavar="NEW.toml", help="also write the problem file with the designed sensors")
+    p.add_argument(
+        "--write-problem",
+        metavar="NEW.toml",
+        help="also write the problem file with the designed sensors (atomically; an existing NEW.toml is first "
+        "kept as NEW.toml.bak, replacing an earlier backup)",
+    )
     p.add_argument("--no-plots", action="store_true", help="skip the figure")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     p.set_defaults(func=run)
 
 
-def write_text_atomic(path: str | Path, text: str) -> Path:
-    """Write a single file atomically (temporary sibling, then rename)."""
-    target = Path(path).expanduser().resolve()
-    if target.exists() and target.is_dir():
-        raise OutputError(f"write-problem = {str(path)!r}: is a directory")
-    if not target.parent.is_dir():
-        raise OutputError(f"write-problem = {str(path)!r}: directory {str(target.parent)!r} does not exist")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.tmp-", dir=target.parent)
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, target)
-    except OSError as exc:
-        raise OutputError(f"write-problem = {str(path)!r}: cannot write it ({exc.strerror})") from None
-    return target
-
-
 def run(args) -> int:
-    from wingopt.design import DesignSettings, InformationSettings, design_sensors
-    from wingopt.design.figure import layout_figure
-    from wingopt.design.toml_text import problem_text, read_problem_table, sensors_text
-    from wingopt.problem import _resolve as resolve_problem
-    from wingopt.problem import load_problem
-    from wingopt.results import ResultDirectory, to_jsonable, write_json
-    from wingopt.results.writer import check_writable
+    from wingopt.results import to_jsonable
+    from wingopt.workflows.design import run_design
 
-    check_writable(args.out)
     if not (0 < args.noise <= 100):
         raise InputError(f"noise = {args.noise!r}: expected a percentage in (0, 100]")
-    problem = load_problem(args.problem)
-    if problem.kind != "membrane":
-        raise InputError(f"problem = {args.problem!r}: design-sensors needs a membrane problem, got {problem.kind!r}")
-    settings = DesignSettings(
+    done = run_design(
+        args.problem,
+        args.count,
+        args.out,
+        candidates=args.candidates,
+        montecarlo=args.montecarlo,
+        plots=not args.no_plots,
+        write_problem=args.write_problem,
         criterion=args.criterion,
         prior=args.prior,
         length_scale=args.length_scale,
         nominal_count=args.nominal,
         aggregate=args.aggregate,
+        noise=args.noise / 100.0,
+        t_end=args.t_end,
         allow_overlap=args.allow_overlap,
-        information=InformationSettings(
-            noise=args.noise / 100.0, t_end=args.t_end, window_s=min(0.2, args.t_end) if args.t_end > 0 else 0.2
-        ),
     )
-    if args.montecarlo < 0 or (args.montecarlo and args.criterion != "risk"):
-        raise InputError(f"montecarlo = {args.montecarlo}: expected a positive short-list size, with --criterion risk")
-    result = design_sensors(problem, args.count, args.candidates, settings)
-    if args.montecarlo:
-        from wingopt.design.rerank import MonteCarloSettings, adopt, rerank
-
-        mcs = MonteCarloSettings(shortlist=args.montecarlo, noise=args.noise / 100.0, t_end=args.t_end)
-        result = adopt(result, rerank(result, mcs))
-    summary = result.summary()
-    header = (
-        f"{result.count} sensors designed by wingopt design-sensors ({args.criterion}) for {problem.name};\n"
-        f"predicted mean relative load error {result.predictions['risk_relative_load_error']:.3f}"
-    )
-    toml = sensors_text(result.rects, header=header)
-    with ResultDirectory(args.out) as tmp:
-        write_json(tmp / "summary.json", to_jsonable(summary))
-        (tmp / "sensors.toml").write_text(toml)
-        if not args.no_plots:
-            fig = layout_figure(result, [s.rect for s in problem.sensors])
-            fig.savefig(tmp / "layout.png", dpi=120)
-    if args.write_problem:
-        table = read_problem_table(resolve_problem(args.problem))
-        write_text_atomic(args.write_problem, problem_text(table, result.rects, header=header))
+    result = done.result
     if args.json:
-        print(json.dumps(to_jsonable(summary), indent=2))
+        print(json.dumps(to_jsonable(done.summary), indent=2))
     else:
-        print(toml, end="")
+        print(done.sensors_toml, end="")
         rel = result.relaxation
         print(
             f"# criterion {args.criterion}: {result.value:.4g}; A-relaxation bound {rel['bound']:.4g}, "
@@ -146,4 +107,6 @@ def run(args) -> int:
         )
         for w in result.warnings:
             print(f"# warning: {w}")
+        if done.backup is not None:
+            print(f"# kept the earlier {args.write_problem} as {done.backup}")
     return 0

@@ -10,7 +10,9 @@ family of nominal responses (:mod:`~wingopt.design.information`; robust design o
   estimator; started from the relaxed A-design and from greedy, improved by swaps. It has no convex
   bound; the A-relaxation's bound and gap are reported for the chosen layout.
 
-Nothing here writes files; :func:`wingopt.cli.design` does, through :mod:`wingopt.results`.
+:func:`predicted_error_field` is the field the layout figure shows. Nothing here writes files or
+draws: :mod:`wingopt.workflows.design` hands the result to :mod:`wingopt.results` and
+:mod:`wingopt.plots`.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from wingopt.design.selection import greedy, overlap_matrix, relax, round_weight
 from wingopt.errors import InputError
 from wingopt.membrane import MembraneModel
 
-__all__ = ["CRITERIA", "DesignSettings", "DesignResult", "design_sensors"]
+__all__ = ["CRITERIA", "DesignSettings", "DesignResult", "design_sensors", "predicted_error_field"]
 
 log = logging.getLogger(__name__)
 
@@ -355,3 +357,23 @@ def _reduced_value(linear: LinearCriterion, info_r, weight_r, const_r, layout) -
     tr = np.trace(np.linalg.solve(S + eye, weight_r), axis1=-2, axis2=-1)
     v = (const_r + tr) / linear.scale
     return float(np.sqrt(v.mean() if linear.aggregate == "mean" else v.max()))
+
+
+def predicted_error_field(result: DesignResult, nx: int = 57, ny: int = 29):
+    """``(X, Y, E)``: the relative RMS pointwise error of the design's linearised estimates.
+
+    ``E`` is the RMS over the nominal loads of the linearised, noise-free estimator's error
+    ``|P - f^|`` (:meth:`~wingopt.design.risk.BayesRisk.load_coefficients`), relative to the RMS
+    pressure: where the layout leaves the load unresolved.
+    """
+    prob, sens, loads = result.problem, result.sensitivity, result.nominal_loads
+    coefs = result.risk.load_coefficients(result.risk_layout)
+    X, Y = np.meshgrid(np.linspace(0, prob.width, nx), np.linspace(0, prob.height, ny))
+    err2 = np.zeros_like(X)
+    ref2 = 0.0
+    for P, c in zip(loads, coefs):
+        est = sens.model.space.evaluate(c, X.ravel(), Y.ravel()).reshape(X.shape)
+        truth = P(X, Y)
+        err2 += (truth - est) ** 2
+        ref2 += float(np.mean(truth**2))
+    return X, Y, np.sqrt(err2 / len(loads)) / np.sqrt(ref2 / len(loads))

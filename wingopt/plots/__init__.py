@@ -34,11 +34,11 @@ def pyplot() -> type[_Figures]:
     return _Figures
 
 
-def save(fig, path: Path | None, tight: bool = True):
-    """Lay out (unless ``tight=False``) and write ``fig`` as a PNG at 110 dpi; returns the figure."""
+def save(fig, path: Path | None, tight: bool = True, dpi: int = 110):
+    """Lay out (unless ``tight=False``) and write ``fig`` as a PNG (110 dpi unless given); returns the figure."""
     if path is None:
         return fig
     if tight:
         fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=dpi)
     return fig

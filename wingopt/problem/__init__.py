@@ -16,7 +16,15 @@ from wingopt.errors import InputError, ProblemFileError
 from wingopt.problem.fields import Table
 from wingopt.problem.membrane import MembraneProblem
 
-__all__ = ["load_problem", "parse_problem", "parse_mesh", "builtin_problems", "PROBLEMS_DIR", "MembraneProblem"]
+__all__ = [
+    "load_problem",
+    "read_problem_table",
+    "parse_problem",
+    "parse_mesh",
+    "builtin_problems",
+    "PROBLEMS_DIR",
+    "MembraneProblem",
+]
 
 
 def _problems_dir() -> Path:
@@ -82,9 +90,18 @@ def load_problem(problem: str | Path):
         :class:`~wingopt.errors.ProblemFileError` naming the field.
     """
     path = _resolve(problem)
+    return parse_problem(_read(path), str(path), path.stem)
+
+
+def read_problem_table(problem: str | Path) -> dict[str, Any]:
+    """The parsed TOML of a problem file (path or built-in name), not validated: the tables as written."""
+    return _read(_resolve(problem))
+
+
+def _read(path: Path) -> dict[str, Any]:
     try:
         with open(path, "rb") as fh:
-            data = tomllib.load(fh)
+            return tomllib.load(fh)
     except tomllib.TOMLDecodeError as exc:
         raise ProblemFileError(f"{path}: not valid TOML: {exc}") from None
     except UnicodeDecodeError as exc:
@@ -93,7 +110,6 @@ def load_problem(problem: str | Path):
         raise ProblemFileError(f"{path}: nested too deeply to be a problem file") from None
     except OSError as exc:
         raise ProblemFileError(f"{path}: cannot read: {exc.strerror}") from None
-    return parse_problem(data, str(path), path.stem)
 
 
 def parse_mesh(text: str) -> tuple[int, int]:

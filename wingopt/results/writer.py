@@ -25,7 +25,16 @@ import numpy as np
 
 from wingopt.errors import OutputError
 
-__all__ = ["ResultDirectory", "write_json", "write_csv", "to_jsonable", "check_writable", "MARKER"]
+__all__ = [
+    "ResultDirectory",
+    "write_json",
+    "write_csv",
+    "to_jsonable",
+    "check_writable",
+    "check_file_writable",
+    "write_text_atomic",
+    "MARKER",
+]
 
 log = logging.getLogger(__name__)
 
@@ -102,6 +111,49 @@ def check_writable(target: str | os.PathLike) -> Path:
     except OSError as exc:
         raise OutputError(f"out = {given!r}: directory {str(parent)!r} is not writable ({exc.strerror})") from None
     return target
+
+
+def check_file_writable(path: str | os.PathLike, what: str = "file") -> Path:
+    """The resolved ``path`` of a single output file; :class:`OutputError` (naming ``what``) if it is
+    a directory or its directory does not exist."""
+    target = Path(path).expanduser().resolve()
+    if target.is_dir():
+        raise OutputError(f"{what} = {str(path)!r}: is a directory")
+    if not target.parent.is_dir():
+        raise OutputError(f"{what} = {str(path)!r}: directory {str(target.parent)!r} does not exist")
+    return target
+
+
+def _replace_with(target: Path, fill) -> None:
+    """``fill(tmp)`` on a temporary sibling of ``target``, then rename it onto ``target``."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.tmp-", dir=target.parent)
+    os.close(fd)
+    try:
+        fill(Path(tmp))
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, target)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_text_atomic(path: str | os.PathLike, text: str, *, what: str = "file", backup: bool = True):
+    """Write one text file atomically (a temporary sibling renamed into place).
+
+    With ``backup``, an existing file is first copied to ``NAME.bak`` (replacing an earlier backup),
+    itself written atomically: at every moment the file is whole, old or new. Returns ``(path,
+    backup path or None)``; an ``OSError`` becomes an :class:`OutputError` naming ``what``.
+    """
+    target = check_file_writable(path, what)
+    kept = None
+    try:
+        if backup and target.is_file():
+            kept = target.with_name(target.name + ".bak")
+            _replace_with(kept, lambda tmp: shutil.copyfile(target, tmp))
+        _replace_with(target, lambda tmp: tmp.write_text(text))
+    except OSError as exc:
+        raise OutputError(f"{what} = {str(path)!r}: cannot write it ({exc.strerror or exc})") from None
+    return target, kept
 
 
 def _pid_alive(pid: int) -> bool:

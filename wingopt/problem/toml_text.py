@@ -1,21 +1,20 @@
-"""TOML text of a designed layout: ``[[sensors]]`` tables, and a problem file with new sensors.
+"""Problem-file text: ``[[sensors]]`` tables, and a problem file with new sensors (pure: text out).
 
-The problem file is rebuilt from its parsed tables (``tomllib``), keys in their original order,
-with the ``[[sensors]]`` array replaced; comments are not kept. :func:`problem_text` is checked by
-a round trip (``tomllib.loads(problem_text(d, s))`` gives ``d`` with the new sensors).
+The problem file is rebuilt from its parsed tables (:func:`wingopt.problem.read_problem_table`),
+keys in their original order, with the ``[[sensors]]`` array replaced; comments are not kept.
+:func:`problem_text` is checked by a round trip (``tomllib.loads(problem_text(d, s))`` gives ``d``
+with the new sensors). Nothing here reads or writes a file: :mod:`wingopt.results` writes the text.
 """
 
 from __future__ import annotations
 
 import math
 import re
-import tomllib
 from collections.abc import Sequence
-from pathlib import Path
 
 from wingopt.errors import InputError
 
-__all__ = ["sensors_text", "problem_text", "read_problem_table"]
+__all__ = ["sensors_text", "problem_text"]
 
 _BARE = re.compile(r"^[A-Za-z0-9_-]+$")
 
@@ -88,17 +87,6 @@ def sensors_text(rects, names: Sequence[str] | None = None, digits: int = 6, hea
         lines.append(f"name = {_value(t['name'])}")
         lines.append(f"rect = {_value(t['rect'])}")
     return "\n".join(lines) + "\n"
-
-
-def read_problem_table(path: str | Path) -> dict:
-    """The parsed TOML of a problem file."""
-    try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except OSError as exc:
-        raise InputError(f"problem = {str(path)!r}: cannot read it ({exc.strerror})") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"problem = {str(path)!r}: not valid TOML ({exc})") from None
 
 
 def problem_text(table: dict, rects, names: Sequence[str] | None = None, digits: int = 6, header: str = "") -> str:

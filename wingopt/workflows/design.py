@@ -1,0 +1,138 @@
+"""Sensor design, the ``wingopt design-sensors`` use case: a problem file in, a layout and files out.
+
+:func:`design_layout` reads the membrane problem, runs the design engine (:mod:`wingopt.design`)
+and, with ``montecarlo``, re-ranks its short list by the estimator; :func:`write_design_outputs`
+hands the result to :mod:`wingopt.results` (``summary.json``, ``sensors.toml``, the problem file
+with the designed sensors) and :mod:`wingopt.plots` (``layout.png``). :func:`run_design` is both,
+with every output checked before the design starts: what the command calls.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+from wingopt.design import DesignResult, DesignSettings, InformationSettings, design_sensors, predicted_error_field
+from wingopt.design.rerank import MonteCarloSettings, adopt, rerank
+from wingopt.errors import InputError
+from wingopt.plots.design import plot_layout
+from wingopt.problem import load_problem, read_problem_table
+from wingopt.problem.toml_text import problem_text, sensors_text
+from wingopt.results import (
+    ResultDirectory,
+    check_file_writable,
+    check_writable,
+    write_json,
+    write_text_atomic,
+)
+
+__all__ = ["DesignRun", "design_settings", "design_layout", "write_design_outputs", "run_design", "sensors_header"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(eq=False)
+class DesignRun:
+    """What :func:`run_design` produced: the design, its summary and the files written."""
+
+    result: DesignResult
+    summary: dict
+    sensors_toml: str
+    problem_file: Path | None = None
+    backup: Path | None = None
+
+
+def design_settings(*, noise: float = 0.01, t_end: float = 1.0, **fields) -> DesignSettings:
+    """The :class:`DesignSettings` of the command's options: ``noise`` (a fraction of each sensor's
+    peak) and ``t_end`` (the record length, s) set its information; ``fields`` are its own
+    (``criterion``, ``prior``, ``length_scale``, ``nominal_count``, ``aggregate``, ``allow_overlap``)."""
+    window = min(0.2, t_end) if t_end > 0 else 0.2
+    return DesignSettings(**fields, information=InformationSettings(noise=noise, t_end=t_end, window_s=window))
+
+
+def design_layout(problem, count: int, candidates=None, settings: DesignSettings | None = None, montecarlo: int = 0):
+    """Design ``count`` sensors for ``problem`` (a problem file, a built-in name or a loaded problem).
+
+    ``montecarlo = N > 0`` re-ranks the design's ``N`` best layouts by the estimator's mean error on
+    the nominal loads (``risk`` only; :mod:`wingopt.design.rerank`), at the settings' noise and
+    record length.
+    """
+    s = settings or DesignSettings()
+    if montecarlo < 0 or (montecarlo and s.criterion != "risk"):
+        raise InputError(f"montecarlo = {montecarlo}: expected a positive short-list size, with --criterion risk")
+    prob = load_problem(problem) if isinstance(problem, (str, Path)) else problem
+    if prob.kind != "membrane":
+        raise InputError(f"problem = {str(problem)!r}: design-sensors needs a membrane problem, got {prob.kind!r}")
+    result = design_sensors(prob, count, candidates, s)
+    if montecarlo:
+        mcs = MonteCarloSettings(shortlist=montecarlo, noise=s.information.noise, t_end=s.information.t_end)
+        result = adopt(result, rerank(result, mcs))
+    return result
+
+
+def sensors_header(result: DesignResult) -> str:
+    """The comment above the written ``[[sensors]]`` tables."""
+    name = getattr(result.problem, "name", "membrane")
+    return (
+        f"{result.count} sensors designed by wingopt design-sensors ({result.settings.criterion}) for {name};\n"
+        f"predicted mean relative load error {result.predictions['risk_relative_load_error']:.3f}"
+    )
+
+
+def write_design_outputs(
+    result: DesignResult,
+    out: str | Path,
+    *,
+    plots: bool = True,
+    write_problem: str | Path | None = None,
+    source=None,
+) -> DesignRun:
+    """Write ``summary.json``, ``sensors.toml`` and ``layout.png`` into ``out`` (atomically).
+
+    ``write_problem``: also write the problem file ``source`` (a path or built-in name; default the
+    design's problem name) with its ``[[sensors]]`` replaced by the design, atomically; an existing
+    file there is first kept as ``NAME.bak``.
+    """
+    header = sensors_header(result)
+    toml = sensors_text(result.rects, header=header)
+    summary = result.summary()
+    with ResultDirectory(out) as tmp:
+        write_json(tmp / "summary.json", summary)
+        (tmp / "sensors.toml").write_text(toml)
+        if plots:
+            default = [s.rect for s in result.problem.sensors]
+            plot_layout(tmp / "layout.png", result, predicted_error_field(result), default)
+    run = DesignRun(result, summary, toml)
+    if write_problem is not None:
+        table = read_problem_table(source if source is not None else result.problem.name)
+        text = problem_text(table, result.rects, header=header)
+        run.problem_file, run.backup = write_text_atomic(write_problem, text, what="write-problem")
+        if run.backup is not None:
+            log.info("kept the earlier %s as %s", run.problem_file.name, run.backup.name)
+    return run
+
+
+def run_design(
+    problem,
+    count: int,
+    out: str | Path,
+    *,
+    candidates=None,
+    montecarlo: int = 0,
+    plots: bool = True,
+    write_problem: str | Path | None = None,
+    **options,
+) -> DesignRun:
+    """:func:`design_layout` then :func:`write_design_outputs`, both outputs checked first.
+
+    ``problem`` is a problem file or built-in name (the source of ``write_problem``) or a loaded
+    problem; ``options`` are those of :func:`design_settings`.
+    """
+    check_writable(out)
+    settings = design_settings(**options)
+    if write_problem is not None:
+        check_file_writable(write_problem, "write-problem")
+    result = design_layout(problem, count, candidates, settings, montecarlo)
+    source = problem if isinstance(problem, (str, Path)) else None
+    return write_design_outputs(result, out, plots=plots, write_problem=write_problem, source=source)
