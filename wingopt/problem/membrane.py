@@ -54,10 +54,15 @@ class IdentificationSettings:
     ``16 xi (1 - xi) eta (1 - eta)`` (the protocol's 1 cm bubble); ``0`` means unknown. With it,
     the estimators also fix the sign of loads without net lift (L2).
 
-    Model parameters the nonlinear estimator identifies (spec §8): ``free_parameters`` (some of
-    ``prestrain_x``, ``prestrain_y``, ``damping``), the prestrain prior's relative std
-    ``prestrain_prior_rel`` (mean: ``[material] prestrain``) and the damping factor's
-    (log-normal, std ``log(1 + damping_prior_rel)``, mean 1).
+    Model parameters the nonlinear estimators identify (spec §8): ``free_parameters`` (some of
+    ``prestrain_x``, ``prestrain_y``, ``damping``) and their prior. Without a calibration: the
+    prestrains' mean is ``[material] prestrain`` with a relative std ``prestrain_prior_rel``, the
+    damping factor's mean is 1 (log-normal, std ``log(1 + damping_prior_rel)``). A calibration
+    (``wingopt calibrate``) writes its posterior here: ``prestrain = [ex, ey]`` with
+    ``prestrain_std = [sx, sy]`` (1-sigma) and ``prestrain_correlation`` (a ringing record fixes a
+    combination of the two far better than either: correlation near -1), ``damping = d`` with
+    ``damping_std`` (1-sigma of the factor), and ``calibration`` (where they came from); they are
+    then the prior.
     """
 
     dt: float = 1.0e-3
@@ -67,6 +72,12 @@ class IdentificationSettings:
     free_parameters: tuple[str, ...] = ("prestrain_x", "prestrain_y", "damping")
     prestrain_prior_rel: float = 0.2
     damping_prior_rel: float = 1.0
+    prestrain: tuple[float, float] | None = None
+    prestrain_std: tuple[float, float] | None = None
+    damping: float = 1.0
+    damping_std: float | None = None
+    prestrain_correlation: float = 0.0
+    calibration: str = ""
 
 
 FREE_PARAMETERS = ("prestrain_x", "prestrain_y", "damping")
@@ -154,6 +165,16 @@ def from_table(root: Table, name: str) -> MembraneProblem:
     ident._take("free_parameters", None, "")
     prestrain_rel = ident.number("prestrain_prior_rel", 0.2, positive=True)
     damping_rel = ident.number("damping_prior_rel", 1.0, positive=True)
+    calibrated = ident.numbers("prestrain", 2, None, positive=True) if ident.has("prestrain") else None
+    if calibrated is not None and max(calibrated) >= 0.5:
+        raise ident.error("prestrain", list(calibrated), "two prestrains [ex, ey] below 0.5")
+    calibrated_std = ident.numbers("prestrain_std", 2, None, positive=True) if ident.has("prestrain_std") else None
+    if calibrated_std is not None and calibrated is None:
+        raise ident.error("prestrain_std", list(calibrated_std), "a [identification] prestrain = [ex, ey] beside it")
+    damping = ident.number("damping", 1.0, positive=True)
+    damping_std = ident.number("damping_std", None, positive=True)
+    correlation = ident.number("prestrain_correlation", 0.0, lo=-0.999, hi=0.999)
+    calibration = ident.string("calibration", "")
     noise = None
     if ident.has("noise_std"):
         if isinstance(ident.peek("noise_std"), list):
@@ -176,6 +197,12 @@ def from_table(root: Table, name: str) -> MembraneProblem:
             free_parameters=tuple(dict.fromkeys(free)),
             prestrain_prior_rel=prestrain_rel,
             damping_prior_rel=damping_rel,
+            prestrain=None if calibrated is None else tuple(calibrated),
+            prestrain_std=None if calibrated_std is None else tuple(calibrated_std),
+            damping=damping,
+            damping_std=damping_std,
+            prestrain_correlation=correlation,
+            calibration=calibration,
         ),
         name=name,
         source=root.source,

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 
 from wingopt.errors import InputError
 
-__all__ = ["sensors_text", "problem_text"]
+__all__ = ["sensors_text", "problem_text", "table_text"]
 
 _BARE = re.compile(r"^[A-Za-z0-9_-]+$")
 
@@ -101,6 +101,25 @@ def problem_text(table: dict, rects, names: Sequence[str] | None = None, digits:
             new[k] = v
     if not placed:
         new["sensors"] = _sensor_tables(rects, names, digits)
+    lines = [f"# {h}" for h in header.splitlines()] if header else []
+    _emit(lines, new, ())
+    text = "\n".join(lines).strip("\n") + "\n"
+    return re.sub(r"\n{3,}", "\n\n", text)
+
+
+def table_text(table: dict, updates: dict[str, dict] | None = None, header: str = "") -> str:
+    """The TOML text of ``table`` with the keys of ``updates`` (``{table name: {key: value}}``) set.
+
+    Other tables and keys are kept in their order; a key set to ``None`` is removed.
+    """
+    new = {k: (dict(v) if isinstance(v, dict) else v) for k, v in table.items()}
+    for name, keys in (updates or {}).items():
+        sub = new.setdefault(name, {})
+        for k, v in keys.items():
+            if v is None:
+                sub.pop(k, None)
+            else:
+                sub[k] = list(v) if isinstance(v, tuple) else v
     lines = [f"# {h}" for h in header.splitlines()] if header else []
     _emit(lines, new, ())
     text = "\n".join(lines).strip("\n") + "\n"

@@ -117,16 +117,7 @@ class RealisticSettings:
         return dataclasses.replace(self, **kw)
 
 
-def _prior(problem, s: RealisticSettings) -> ParameterPrior:
-    ident = problem.identification
-    e0 = problem.material.prestrain
-    free = s.free if s.free is not None else getattr(ident, "free_parameters", PARAMETERS)
-    rel = s.prestrain_rel if s.prestrain_rel is not None else getattr(ident, "prestrain_prior_rel", 0.2)
-    drel = s.damping_rel if s.damping_rel is not None else getattr(ident, "damping_prior_rel", 1.0)
-    return ParameterPrior((e0, e0), tuple(free), rel, 1.0, drel)
-
-
-def _initial_state_prior(bm: ModalMembrane, problem, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+def initial_state_prior(bm: ModalMembrane, problem, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
     """Prior mean and std of ``[q0, q0']``: the file's bubble when stated, else zero at the data's scale."""
     peak = problem.identification.initial_deflection
     md = bm.m
@@ -174,7 +165,7 @@ def _scan(rp: RecordProblem, sign_pref: float) -> np.ndarray:
 
 
 @functools.lru_cache(maxsize=4)
-def _modal_model(model, kind, modes, dt, substeps, stretch_gain, cubic_modes) -> ModalMembrane:
+def modal_model(model, kind, modes, dt, substeps, stretch_gain, cubic_modes) -> ModalMembrane:
     """The estimator's modal model, built once per membrane model and settings: a lab's records of
     one wing share it (the FvK tensor takes ~0.3 s, a third of a 1 s record's estimation)."""
     if kind == "fvk":
@@ -205,10 +196,10 @@ def realistic_identify(
     p0 = problem.identification.initial_load if initial_load is None else float(initial_load)
     dt = float(np.median(np.diff(meas.t)))
     substeps = max(s.substeps, int(np.ceil(dt / s.substep_s - 1e-9)))
-    bm = _modal_model(model, s.membrane_model, min(s.modes, model.n), dt, substeps, s.stretch_gain, s.cubic_modes)
+    bm = modal_model(model, s.membrane_model, min(s.modes, model.n), dt, substeps, s.stretch_gain, s.cubic_modes)
     shapes = LoadShapes.build(model, s.shapes, p0, s.kappa, s.prior_power)
-    prior = _prior(problem, s)
-    x_mean, x_std, bubble_known = _initial_state_prior(bm, problem, meas.values)
+    prior = ParameterPrior.from_problem(problem, s.free, s.prestrain_rel, s.damping_rel)
+    x_mean, x_std, bubble_known = initial_state_prior(bm, problem, meas.values)
     candidates = {}
     for i, kind in enumerate(("nonlinear", "linear") if s.membrane == "auto" else (s.membrane,)):
         if i > 0 and s.membrane_model == "fvk" and _fits_data(meas.t, *candidates["nonlinear"], s):

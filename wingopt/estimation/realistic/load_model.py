@@ -67,6 +67,11 @@ class LoadShapes:
         sign = np.where(lift < 0, -1.0, 1.0)
         return cls(vecs * sign, mu, std, lift * sign)
 
+    @classmethod
+    def none(cls, model: MembraneModel) -> LoadShapes:
+        """No load at all (a calibration record: free vibration)."""
+        return cls(np.zeros((model.n, 0)), np.zeros(0), np.zeros(0), np.zeros(0))
+
     @property
     def count(self) -> int:
         return self.mu.size

@@ -39,8 +39,9 @@ _H = 1e-30
 class ParameterPrior:
     """Prior of the model parameters: means and which are free.
 
-    ``prestrain_rel``: relative std of each prestrain; ``damping_rel``: the damping factor's
-    prior is log-normal with std ``log(1 + damping_rel)``.
+    ``prestrain_rel``: relative std of each prestrain, or ``prestrain_std`` their absolute stds and
+    ``correlation`` (a calibration's posterior); ``damping_rel``: the damping factor's prior is
+    log-normal with std ``log(1 + damping_rel)``.
     """
 
     prestrain: tuple[float, float]
@@ -48,6 +49,22 @@ class ParameterPrior:
     prestrain_rel: float = 0.2
     damping: float = 1.0
     damping_rel: float = 1.0
+    prestrain_std: tuple[float, float] | None = None
+    correlation: float = 0.0
+
+    @classmethod
+    def from_problem(cls, problem, free=None, prestrain_rel=None, damping_rel=None) -> ParameterPrior:
+        """The problem file's prior (a calibration's posterior when it carries one); arguments override."""
+        ident = problem.identification
+        e0 = problem.material.prestrain
+        mean = ident.prestrain if ident.prestrain is not None else (e0, e0)
+        rel = ident.prestrain_prior_rel if prestrain_rel is None else prestrain_rel
+        std = ident.prestrain_std if prestrain_rel is None else None
+        if damping_rel is None:
+            damping_rel = ident.damping_prior_rel if ident.damping_std is None else ident.damping_std / ident.damping
+        free = ident.free_parameters if free is None else free
+        corr = ident.prestrain_correlation if std is not None else 0.0
+        return cls(tuple(mean), tuple(free), rel, ident.damping, damping_rel, None if std is None else tuple(std), corr)
 
     def __post_init__(self) -> None:
         bad = [n for n in self.free if n not in PARAMETERS]
@@ -63,8 +80,9 @@ class ParameterPrior:
         """Prior mean and std in the unknown's own units (log for the damping)."""
         if name == "damping":
             return float(np.log(self.damping)), float(np.log1p(self.damping_rel))
-        e = self.prestrain[0 if name == "prestrain_x" else 1]
-        return float(e), float(self.prestrain_rel * e)
+        i = 0 if name == "prestrain_x" else 1
+        e = self.prestrain[i]
+        return float(e), float(self.prestrain_rel * e if self.prestrain_std is None else self.prestrain_std[i])
 
 
 @dataclass(frozen=True, eq=False)
@@ -178,9 +196,14 @@ class RecordProblem:
     # -- cost ------------------------------------------------------------------------------
     @cached_property
     def prior_matrix(self) -> np.ndarray:
-        """Rows ``R`` of the prior cost ``|R theta|^2``."""
+        """Rows ``R`` of the prior cost ``|R theta|^2`` (the prestrains' correlation whitened)."""
         R = np.eye(self.dim)
         sl = self.slices
+        free, r = self.prior.free, self.prior.correlation
+        if r and "prestrain_x" in free and "prestrain_y" in free:
+            i, j = (sl["par"].start + free.index(n) for n in ("prestrain_x", "prestrain_y"))
+            L = np.linalg.cholesky(np.array([[1.0, r], [r, 1.0]]))
+            R[np.ix_([i, j], [i, j])] = np.linalg.inv(L)
         if self.hats is not None:
             Rg = self.gust.prior_rows(self.t)
             block = np.zeros((Rg.shape[0], self.dim))

@@ -110,10 +110,7 @@ class NonlinearStreamingEstimator:
             raise InputError(f"initial_load = {self.initial_load!r}: expected a non-zero pressure (its sign)")
         given = noise_std if noise_std is not None else ident.noise_std
         self._sigma_given = None if given is None else resolve_noise_std(np.zeros((1, self.p)), self.names, given)[0]
-        e0 = problem.material.prestrain
-        free = s.free if s.free is not None else getattr(ident, "free_parameters", PARAMETERS)
-        rel = getattr(ident, "prestrain_prior_rel", 0.2)
-        self.prior = ParameterPrior((e0, e0), tuple(free), rel, 1.0, getattr(ident, "damping_prior_rel", 1.0))
+        self.prior = ParameterPrior.from_problem(problem, s.free)
         self.shapes = LoadShapes.build(model, min(s.shapes, model.n), self.initial_load, s.kappa, s.prior_power)
         self._build(ident.dt or 1e-3)  # rebuilt at the first estimate if the stream's period differs
         self.count = 0

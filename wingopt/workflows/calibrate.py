@@ -1,0 +1,151 @@
+"""Calibrate a membrane before a run, the ``wingopt calibrate`` use case: a record without load in,
+the prestrains and damping with their posterior out, and a problem file that carries them.
+
+:func:`calibrate_membrane` reads the problem and the calibration record (a release, a pluck or a
+tap with no flow), runs :func:`wingopt.estimation.realistic.calibration.calibrate`;
+:func:`write_calibration_outputs` hands the result to :mod:`wingopt.results`: ``summary.json`` and,
+with ``write_problem``, the problem file with ``[identification] prestrain, prestrain_std,
+prestrain_correlation, damping, damping_std, calibration`` set. ``wingopt identify`` with that
+problem then takes the calibration's posterior as its prior on the tension and the damping.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from wingopt import resources
+from wingopt.errors import InputError
+from wingopt.estimation.realistic.calibration import Calibration, calibrate
+from wingopt.estimation.sanity import as_measurements
+from wingopt.measurements import Measurements, read_measurements
+from wingopt.membrane import MembraneModel
+from wingopt.problem import load_problem, read_problem_table
+from wingopt.problem.toml_text import table_text
+from wingopt.results import ResultDirectory, check_file_writable, to_jsonable, write_json, write_text_atomic
+
+__all__ = ["CalibrationRun", "calibrate_membrane", "calibrated_problem_text", "write_calibration_outputs"]
+
+
+@dataclass(eq=False)
+class CalibrationRun:
+    """One calibration: the problem, the record, the identified parameters."""
+
+    problem: Any
+    source: str
+    measurements: Measurements
+    calibration: Calibration
+    data_report: dict | None
+    wall_s: float
+
+    def summary(self) -> dict:
+        c = self.calibration
+        names = list(c.parameters)
+        return {
+            "problem": self.problem.name,
+            "data": self.source,
+            "data_report": self.data_report,
+            "samples": int(self.measurements.count),
+            "parameters": c.parameters,
+            "parameters_std": c.parameters_std,
+            "correlation": {"names": names, "matrix": c.correlation.tolist()},
+            "chi2_per_datum": c.chi2_per_datum,
+            "model_adequate": c.adequate,
+            "estimator": c.info,
+            "wall_s": self.wall_s,
+            "warnings": list(c.warnings),
+        }
+
+
+def calibrate_membrane(
+    problem,
+    data: str | Path | Measurements,
+    *,
+    nodes: tuple[int, int] | None = None,
+    release_peak: float | None = None,
+    noise_std: float | None = None,
+    max_memory: float | None = None,
+) -> CalibrationRun:
+    """Identify the prestrains and damping of ``problem``'s membrane from the record ``data``.
+
+    Parameters
+    ----------
+    problem : MembraneProblem or str
+        The problem (a built-in name or a path loads it).
+    data : path or Measurements
+        The calibration record (CSV: ``t`` and one column per sensor), with no load on the wing.
+    nodes : (int, int), optional
+        Estimator mesh (default: the problem's).
+    release_peak : float, optional
+        The record starts at rest in the protocol's bubble shape with this peak (m): a release from
+        a known push. Default: the initial shape is unknown (a pluck or a tap) and identified.
+    noise_std : float, optional
+        Sensor noise std (default: estimated from the data).
+    max_memory : float, optional
+        Refuse a run estimated to need more bytes (before any work).
+
+    Returns
+    -------
+    CalibrationRun
+    """
+    if isinstance(problem, (str, Path)):
+        problem = load_problem(problem)
+    if getattr(problem, "kind", None) != "membrane":
+        raise InputError(f"problem: calibrate needs a membrane problem, got kind {getattr(problem, 'kind', None)!r}")
+    if nodes is not None:
+        problem = problem.with_mesh(nodes)
+    if release_peak is not None and not (math.isfinite(release_peak) and 0 < abs(release_peak) < 0.5):
+        raise InputError(f"release_peak = {release_peak!r}: expected the release bubble's peak in m (e.g. 0.004)")
+    peak = 0.0 if release_peak is None else float(release_peak)
+    fit_problem = dataclasses.replace(
+        problem, identification=dataclasses.replace(problem.identification, initial_deflection=peak)
+    )
+    report = None
+    if isinstance(data, (str, Path)):
+        if Path(data).is_dir():
+            raise InputError(f"data = {str(data)!r}: is a directory, expected a CSV file")
+        meas, csv_report = read_measurements(data, problem.sensor_names)
+        report, source = csv_report.as_dict(), str(data)
+    else:
+        meas, source = as_measurements(data, problem.sensor_names), getattr(data, "source", "") or "<memory>"
+    resources.check(resources.estimate_identify(problem.nodes, meas.count, method="batch"), max_memory)
+    t0 = time.perf_counter()
+    cal = calibrate(MembraneModel.from_problem(fit_problem), meas, noise_std=noise_std)
+    return CalibrationRun(problem, source, meas, cal, report, time.perf_counter() - t0)
+
+
+def calibrated_problem_text(run: CalibrationRun) -> str:
+    """The problem file's text with the calibration's posterior as ``[identification]`` prior."""
+    c = run.calibration
+    r = float(c.correlation[0, 1])
+    ident = {
+        "prestrain": [round(c.parameters["prestrain_x"], 7), round(c.parameters["prestrain_y"], 7)],
+        "prestrain_std": [round(c.parameters_std["prestrain_x"], 7), round(c.parameters_std["prestrain_y"], 7)],
+        "prestrain_correlation": round(max(min(r, 0.999), -0.999), 4),
+        "damping": round(c.parameters["damping"], 5),
+        "damping_std": round(c.parameters_std["damping"], 5),
+        "calibration": f"{Path(run.source).name}: {run.measurements.count} samples, chi-square per datum "
+        f"{c.chi2_per_datum:.2f}{'' if c.adequate else ' (inadequate)'}",
+    }
+    header = f"calibrated by wingopt calibrate from {run.source} (problem {run.problem.source})"
+    return table_text(read_problem_table(run.problem.source), {"identification": ident}, header)
+
+
+def write_calibration_outputs(run: CalibrationRun, out_dir: str | Path, write_problem: str | Path | None = None):
+    """Write ``summary.json`` (atomically) and, with ``write_problem``, the calibrated problem file
+    (an existing file is kept as ``NAME.bak``). Returns ``(out_dir, problem path or None, backup or None)``."""
+    text = calibrated_problem_text(run) if write_problem is not None else None
+    if write_problem is not None:
+        check_file_writable(write_problem, "--write-problem")
+    with ResultDirectory(out_dir) as tmp:
+        write_json(tmp / "summary.json", to_jsonable(run.summary()))
+        if text is not None:
+            (tmp / "calibrated.toml").write_text(text)
+    written = backup = None
+    if text is not None:
+        written, backup = write_text_atomic(write_problem, text, what="--write-problem")
+    return Path(out_dir), written, backup
