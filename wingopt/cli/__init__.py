@@ -67,6 +67,20 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class _Lines(logging.Formatter):
+    """``wingopt COMMAND: warning: ...`` (each warning once, on stderr); INFO and DEBUG name their source."""
+
+    def __init__(self, command: str) -> None:
+        super().__init__()
+        self.command = command
+
+    def format(self, record: logging.LogRecord) -> str:
+        level = record.levelname.lower()
+        if record.levelno >= logging.WARNING:
+            return f"wingopt {self.command}: {level}: {record.getMessage()}"
+        return f"wingopt {self.command}: {record.name.removeprefix('wingopt.')}: {record.getMessage()}"
+
+
 def _configure_logging(args) -> None:
     level = logging.WARNING
     if getattr(args, "quiet", False):
@@ -75,7 +89,13 @@ def _configure_logging(args) -> None:
         level = logging.DEBUG
     elif getattr(args, "verbose", 0) == 1:
         level = logging.INFO
-    logging.basicConfig(level=level, format="%(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(_Lines(getattr(args, "command", "") or ""))
+    root = logging.getLogger()
+    for h in list(root.handlers):
+        root.removeHandler(h)
+    root.addHandler(handler)
+    root.setLevel(max(level, logging.WARNING))  # other libraries: warnings and errors only
     logging.getLogger("wingopt").setLevel(level)
 
 

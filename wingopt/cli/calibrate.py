@@ -11,7 +11,6 @@ from __future__ import annotations
 import argparse
 import json
 
-from wingopt.cli.identify import print_warnings
 from wingopt.errors import InputError
 from wingopt.problem import parse_mesh
 from wingopt.resources import parse_size
@@ -77,7 +76,6 @@ def run(args) -> int:
     )
     _, written, backup = write_calibration_outputs(run_, args.out, args.write_problem)
     summary = to_jsonable(run_.summary())
-    print_warnings("calibrate", summary)
     if args.json:
         print(json.dumps(summary))
         return 0

@@ -11,7 +11,6 @@ from __future__ import annotations
 import argparse
 import json
 import re
-import sys
 
 from wingopt.cli import follow
 from wingopt.errors import InputError
@@ -233,16 +232,8 @@ def run(args) -> int:
         gust=_gust() if args.gust else None,
     )
     write_identify_outputs(run_, args.out, plots=not args.no_plots)
-    summary = to_jsonable(run_.summary())
-    print_warnings("identify", summary)
-    _print(summary, args)
+    _print(to_jsonable(run_.summary()), args)  # its warnings were logged once, as they arose
     return 0
-
-
-def print_warnings(command: str, summary: dict) -> None:
-    """The summary's ``warnings``, one line each on stderr."""
-    for w in summary.get("warnings", []):
-        print(f"wingopt {command}: warning: {w}", file=sys.stderr)
 
 
 def _gust():
@@ -264,6 +255,6 @@ def _print(summary: dict, args) -> None:
             f" (true lift {summary['true_lift_N']:.5g} N)"
         )
     line += f", {summary['wall_s']:.2f} s -> {args.out}"
+    if summary.get("warnings"):
+        line += f" ({len(summary['warnings'])} warning(s): see above and summary.json)"
     print(line)
-    for w in summary.get("warnings", []):
-        print(f"warning: {w}")

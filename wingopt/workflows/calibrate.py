@@ -12,6 +12,7 @@ problem then takes the calibration's posterior as its prior on the tension and t
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import time
 from dataclasses import dataclass
@@ -27,6 +28,8 @@ from wingopt.membrane import MembraneModel
 from wingopt.problem import load_problem, read_problem_table
 from wingopt.problem.toml_text import table_text
 from wingopt.results import ResultDirectory, check_file_writable, to_jsonable, write_json, write_text_atomic
+
+log = logging.getLogger(__name__)
 
 __all__ = ["CalibrationRun", "calibrate_membrane", "calibrated_problem_text", "write_calibration_outputs"]
 
@@ -115,6 +118,8 @@ def calibrate_membrane(
     resources.check(resources.estimate_identify(problem.nodes, meas.count, method="batch"), max_memory)
     t0 = time.perf_counter()
     cal = calibrate(MembraneModel.from_problem(fit_problem), meas, noise_std=noise_std)
+    for w in cal.warnings:
+        log.warning("%s", w)
     return CalibrationRun(problem, source, meas, cal, report, time.perf_counter() - t0)
 
 

@@ -17,6 +17,7 @@ Stretch sensors cannot see the sign of the load: ``initial_load`` (default: the 
 from __future__ import annotations
 
 import dataclasses
+import logging
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -40,6 +41,8 @@ from wingopt.validate import check_seed
 from wingopt.values import LambdaChoice, NoiseLevel
 from wingopt.workflows.protocols import TRUTH_NODES, TRUTHS, simulate_case
 from wingopt.workflows.studies import evaluate, load_field, protocol_sign
+
+log = logging.getLogger(__name__)
 
 __all__ = ["IdentifyRun", "identify", "write_identify_outputs", "LOAD_GRID"]
 
@@ -275,6 +278,8 @@ def identify(
     wall = time.perf_counter() - t0
     warnings += sanity.fit_checks(membrane, meas, result, sanity_sigma(meas, result))
     warnings += [w for w in result.info.get("warnings", []) if w not in warnings]  # the estimator's adequacy
+    for w in warnings:  # each once, here: the engines return theirs, they do not print them
+        log.warning("%s", w)
     protocol["estimator"] = {"method": spec.method, "membrane": spec.model, "options": opts.as_dict()}
     return IdentifyRun(problem, membrane, spec.method, meas, result, wall, case, report, protocol, warnings)
 

@@ -160,8 +160,6 @@ def calibrate(
                 f"{name}: the record holds little on it (posterior std {std[name]:.2g}, prior {prior_sd:.2g}): "
                 "a longer or stronger ringing (a harder pluck, a higher sample rate) would identify it"
             )
-    for w in warnings:
-        log.warning("%s", w)
     info = {
         "iterations": fit.iterations,
         "converged": fit.converged,

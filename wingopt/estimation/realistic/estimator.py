@@ -272,7 +272,6 @@ def _with_tension_profile(res: IdentificationResult, rp: RecordProblem, fit: Fit
         f"x{info['widening']:.2f}"
     )
     res.info["warnings"].append(msg)
-    log.warning("%s", msg)
     return dataclasses.replace(res, lift_std=res.lift_std * (wide / band))
 
 
@@ -363,8 +362,6 @@ def _result(rp, fit: Fit, fits, chosen, ad, sigma, noise_source, wall, s, spread
         "dropped": [],
         "missing_samples": int(np.count_nonzero(~rp.valid.all(axis=1))),
     }
-    for w in warnings:
-        log.warning("%s", w)
     return IdentificationResult(
         method="realistic",
         t=rp.t,
