@@ -16,6 +16,10 @@ ProxQP are the optional extra ``fast``). The order of :data:`SOLVERS` is the ord
 the QP backends fastest measured on the morphing QP first (``benchmarks/bench_latency.py``, table
 in ``docs/control_qp.md``); :func:`default_backend` is the fastest installed, falling back to
 Clarabel. Command-line flags are the CLI's business: this module names solvers only.
+
+The backend classes are imported here as they are; each backend module imports its solver package
+inside the functions that use it, so that a missing optional package (PIQP, ProxQP) fails only when
+that backend is chosen, and CVXPY and CasADi (slow to import) are not loaded at start-up.
 """
 
 from __future__ import annotations
