@@ -17,6 +17,7 @@ import argparse
 import dataclasses
 import logging
 import time
+from pathlib import Path
 
 from wingopt.plate.calibration import (
     LayoutParameters,
@@ -72,10 +73,17 @@ def main() -> None:
         check(problem, meshes)
         if args.figures:
             from wingopt.plate.model import PlateModel
-            from wingopt.plate.plots import layout_figure, modes_figure, save
+            from wingopt.plots import save
+            from wingopt.plots.plate import layout_figure, modes_figure
 
-            print(save(layout_figure(problem), f"{args.figures}/plate_layout.png"))
-            print(save(modes_figure(PlateModel.from_problem(problem, (13, 61))), f"{args.figures}/plate_modes.png"))
+            figures = Path(args.figures)
+            figures.mkdir(parents=True, exist_ok=True)
+            for name, fig in (
+                ("plate_layout.png", layout_figure(problem)),
+                ("plate_modes.png", modes_figure(PlateModel.from_problem(problem, (13, 61)))),
+            ):
+                save(fig, figures / name, tight=False, dpi=150)
+                print(figures / name)
         return
     t0 = time.perf_counter()
     best, summary = calibrate(problem, SPEC_START, FREE)

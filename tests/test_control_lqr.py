@@ -70,6 +70,20 @@ def test_refinement_recovers_the_solution_from_a_poor_gain():
     np.testing.assert_allclose(K, K0, rtol=1e-9, atol=1e-12)
 
 
+def test_refinement_from_a_poor_start_goes_through_the_halving_phase():
+    """Newton–Kleinman from a gain 1000x too large halves the change per step before converging.
+
+    Scalar ``-S^2 + 1 = 0`` (S = K = 1): ten slow steps, then quadratic. A rule that takes slow
+    shrinking for a stall stops in the second step with the residual far above ``rtol``.
+    """
+    from wingopt.control.riccati_refine import RTOL, care_residual, refine_care
+
+    one = np.eye(1)
+    S, K = refine_care(np.zeros((1, 1)), one, one, one, np.array([[1000.0]]))
+    assert care_residual(np.zeros((1, 1)), one, one, one, S) <= RTOL
+    assert K[0, 0] == pytest.approx(1.0, rel=1e-12)
+
+
 def test_a_residual_that_stays_poor_raises_the_named_error():
     from wingopt.errors import RiccatiAccuracyError, SolverError
 

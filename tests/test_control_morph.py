@@ -116,12 +116,12 @@ def test_cli_membrane_problem_refused(tmp_path, capsys):
 
 
 def test_failed_run_leaves_no_directory(tmp_path, monkeypatch, twist7):
-    import wingopt.plots.morph as pm
+    import wingopt.workflows.morph as wm
 
     def boom(*a, **k):
         raise InputError("boom")
 
-    monkeypatch.setattr(pm, "plot_morph", boom)
+    monkeypatch.setattr(wm, "plot_morph", boom)  # the figure step, as the workflow calls it
     out = tmp_path / "half"
     with pytest.raises(InputError):
         write_morph_outputs(twist7, out)

@@ -7,15 +7,18 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from wingopt.cli import solver_flag_hint
 from wingopt.errors import InputError, SolverError
 from wingopt.optim import (
     BACKENDS,
     ParametricQP,
     SolveStatus,
     available_backends,
+    check_solver,
     default_backend,
     make_backend,
     registry,
+    solver_names,
 )
 from wingopt.optim.least_distance import LDP_SOLVERS, LeastDistanceQP
 from wingopt.optim.qp import DenseForm
@@ -105,7 +108,9 @@ def test_infeasible_qp_raises_naming_backend_status_and_hint(name):
     assert exc.value.backend == name
     failed = (SolveStatus.INFEASIBLE, SolveStatus.NUMERICAL_ERROR, SolveStatus.MAX_ITERATIONS)
     assert status_from(name, exc.value.status) in failed
-    assert "--solver" in str(exc.value) and "clarabel" in str(exc.value)
+    assert exc.value.context == "qp" and "another QP backend" in str(exc.value)
+    assert "--" not in str(exc.value)  # the optimisation layer names no flag; the CLI adds it
+    assert solver_flag_hint("morph", exc.value) == f" (--solver {'|'.join(available_backends())})"
 
 
 @pytest.mark.parametrize(
@@ -131,6 +136,31 @@ def test_registry_names_and_default():
     assert default_backend() == ("daqp" if "daqp" in available_backends() else "clarabel")
     with pytest.raises(InputError, match="solver = 'gurobi'"):
         make_backend("gurobi", _random_qp())
+
+
+def test_one_vocabulary_of_solver_names():
+    """Every consumer's names are a capability of the registry; every refusal lists them."""
+    from wingopt.control.mpc_settings import QPSettings
+    from wingopt.estimation.mhe import MHESettings
+    from wingopt.estimation.mhe.solvers import WINDOW_SOLVERS, make_solver
+
+    assert BACKENDS == solver_names("qp") == ("daqp", "clarabel", "osqp", "piqp", "proxqp", "ipopt", "casadi-qp")
+    assert LDP_SOLVERS == solver_names("least-distance") == ("daqp", "clarabel", "osqp")
+    assert WINDOW_SOLVERS == solver_names("window") == ("numpy", "cvxpy", "ipopt")
+    assert solver_names("sdp") == ("clarabel", "scs")
+    assert all(registry.SOLVERS[name].backend is not None for name in BACKENDS)
+    refusals = [
+        (lambda: QPSettings(solver="gurobi"), BACKENDS),
+        (lambda: MHESettings(backend="gurobi"), WINDOW_SOLVERS),
+        (lambda: MHESettings(qp_solver="gurobi"), LDP_SOLVERS),
+        (lambda: make_solver("gurobi"), WINDOW_SOLVERS),
+        (lambda: check_solver("gurobi", "sdp", "relaxation solver"), solver_names("sdp")),
+    ]
+    for refuse, names in refusals:
+        with pytest.raises(InputError, match="'gurobi'") as exc:
+            refuse()
+        assert ", ".join(names) in str(exc.value)
+    assert check_solver("Clarabel", "sdp") == "clarabel"
 
 
 def test_a_missing_package_is_named(monkeypatch):
@@ -163,7 +193,10 @@ def test_least_distance_solvers_agree():
         LeastDistanceQP("clarabel", label="cvxpy-clarabel").solve(
             c, np.vstack([M[:1], M[:1]]), [1.0, -3.0], [2.0, -2.0]
         )
-    assert exc.value.backend == "cvxpy-clarabel" and "--backend" in str(exc.value)
+    assert exc.value.backend == "cvxpy-clarabel" and exc.value.context == "mhe"
+    assert solver_flag_hint("identify", exc.value) == " (--backend numpy|cvxpy|ipopt)"
+    with pytest.raises(InputError, match="qp_solver = 'piqp': expected one of daqp, clarabel, osqp"):
+        LeastDistanceQP("piqp")
 
 
 def _imports(path: Path) -> set[str]:

@@ -52,12 +52,16 @@ class SolverError(WingoptError, RuntimeError):
         The solver's own status, as it reported it.
     hint : str
         What the user can try.
+    context : str, optional
+        Which choice of solver failed (``"qp"``: the QP backend, ``"mhe"``: the MHE window
+        solver), for a front end to name the setting that picks another one.
     """
 
-    def __init__(self, backend: str, status: str, hint: str = "") -> None:
+    def __init__(self, backend: str, status: str, hint: str = "", context: str | None = None) -> None:
         self.backend = backend
         self.status = status
         self.hint = hint
+        self.context = context
         msg = f"{backend} failed with status {status!r}"
         if hint:
             msg += f"; {hint}"

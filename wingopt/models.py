@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
-import importlib
 from typing import Any, Protocol
 
 import numpy as np
 
+from wingopt.membrane.model import MembraneModel
+from wingopt.plate.model import PlateModel
+
 __all__ = ["build_model", "WingModel"]
 
-# kind -> "module:Class"; each class has ``from_problem(problem, nodes=None)``.
-_MODEL_CLASSES = {"membrane": "wingopt.membrane.model:MembraneModel", "plate": "wingopt.plate.model:PlateModel"}
+_MODEL_CLASSES = {"membrane": MembraneModel, "plate": PlateModel}
+"""Problem kind -> model class; each class has ``from_problem(problem, nodes=None)``."""
 
 
 class WingModel(Protocol):
@@ -39,5 +41,4 @@ def build_model(problem, nodes: tuple[int, int] | None = None) -> WingModel:
         Sparse ``M``, ``K``, damping, inputs and sensors; ``model.system`` is its
         :class:`~wingopt.dynamics.SecondOrderSystem` (modes and static fields cached).
     """
-    module, cls = _MODEL_CLASSES[problem.kind].split(":")
-    return getattr(importlib.import_module(module), cls).from_problem(problem, nodes)
+    return _MODEL_CLASSES[problem.kind].from_problem(problem, nodes)

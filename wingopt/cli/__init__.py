@@ -17,10 +17,15 @@ import sys
 
 from wingopt import __version__
 from wingopt.errors import InputError, SolverError
+from wingopt.optim.registry import available_backends
 
-__all__ = ["main", "build_parser", "EXIT_OK", "EXIT_INPUT", "EXIT_SOLVER"]
+__all__ = ["main", "build_parser", "solver_flag_hint", "EXIT_OK", "EXIT_INPUT", "EXIT_SOLVER", "SOLVER_FLAGS"]
 
 EXIT_OK, EXIT_INPUT, EXIT_SOLVER = 0, 2, 3
+
+SOLVER_FLAGS = {("morph", "qp"): ("--solver", "qp"), ("identify", "mhe"): ("--backend", "window")}
+"""(command, context of a :class:`SolverError`) -> the flag that picks another solver, and the
+capability (:mod:`wingopt.optim.registry`) whose installed names it takes."""
 
 log = logging.getLogger("wingopt")
 
@@ -79,6 +84,14 @@ class _Lines(logging.Formatter):
         if record.levelno >= logging.WARNING:
             return f"wingopt {self.command}: {level}: {record.getMessage()}"
         return f"wingopt {self.command}: {record.name.removeprefix('wingopt.')}: {record.getMessage()}"
+
+
+def solver_flag_hint(command: str, exc: SolverError) -> str:
+    """`` (--flag name|name|...)``: how to pick another solver after ``exc`` in ``command`` (or "")."""
+    flag = SOLVER_FLAGS.get((command, exc.context))
+    if flag is None:
+        return ""
+    return f" ({flag[0]} {'|'.join(available_backends(flag[1]))})"
 
 
 def _configure_logging(args) -> None:
@@ -153,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name}: error: {exc}", file=sys.stderr)
         return EXIT_INPUT
     except SolverError as exc:
-        print(f"{name}: solver failure: {exc}", file=sys.stderr)
+        print(f"{name}: solver failure: {exc}{solver_flag_hint(args.command, exc)}", file=sys.stderr)
         return EXIT_SOLVER
     except KeyboardInterrupt:
         print(f"{name}: interrupted (Ctrl-C); nothing written", file=sys.stderr)

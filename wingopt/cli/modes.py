@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import time
 
@@ -25,7 +26,7 @@ def register(sub, common) -> None:
         description="Undamped natural frequencies (ascending) and eigenvalues of the damped first-order "
         "system (positive imaginary part, ascending) of a problem's FE model.",
         epilog=EXAMPLE,
-        formatter_class=__import__("argparse").RawDescriptionHelpFormatter,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("problem", help="problem file (.toml) or built-in name (membrane, plate)")
     p.add_argument("--mesh", help="nodes in x and y, e.g. 25x13 (default: the problem's mesh)")

@@ -11,8 +11,14 @@ import argparse
 import json
 import math
 
+from wingopt import resources
 from wingopt.errors import InputError
+from wingopt.optim.registry import BACKENDS, FALLBACK
+from wingopt.plate.shapes import SHAPES
+from wingopt.problem import parse_mesh
 from wingopt.results import to_jsonable
+from wingopt.validate import check_seed
+from wingopt.workflows.morph import METHODS, morph_to_directory
 
 ORDER = 20
 
@@ -54,7 +60,7 @@ def register(sub, common) -> None:
     q.add_argument("--horizon", type=int, help="prediction horizon, steps")
     q.add_argument(
         "--solver",
-        help="QP backend: daqp (default when installed), clarabel (fallback), osqp, piqp, proxqp, ipopt or casadi-qp",
+        help=f"QP backend: {', '.join(BACKENDS)} (default {BACKENDS[0]} when installed, else {FALLBACK})",
     )
     q.add_argument("--mode", help="closed-loop (receding horizon) or open-loop")
     q.add_argument("--no-compare", action="store_true", help="qp: skip the saturated-LQR comparison run")
@@ -83,9 +89,6 @@ def _options(args) -> dict:
 
 
 def _check(args) -> None:
-    from wingopt.plate.shapes import SHAPES
-    from wingopt.workflows.morph import METHODS
-
     if args.shape not in SHAPES:
         raise InputError(f"shape = {args.shape!r}: expected one of {', '.join(SHAPES)}")
     if args.method not in METHODS:
@@ -100,50 +103,32 @@ def _check(args) -> None:
         raise InputError(f"t-end = {args.t_end!r}: expected a positive duration (s)")
     if not args.period > 0 or args.period > args.t_end:
         raise InputError(f"period = {args.period!r}: expected a positive control period no longer than --t-end")
-    from wingopt.validate import check_seed
-
     check_seed(args.seed)
     if args.sensor_noise < 0:
         raise InputError(f"sensor-noise = {args.sensor_noise!r}: expected a standard deviation >= 0")
 
 
 def run(args) -> int:
-    from wingopt.plate import PlateModel
-    from wingopt.problem import load_problem, parse_mesh
-    from wingopt.results.writer import check_writable
-    from wingopt.workflows.morph import load_factory, morph, write_morph_outputs
-
-    check_writable(args.out)
     _check(args)
     options = _options(args)
-    problem = load_problem(args.problem)
-    if problem.kind != "plate":
-        raise InputError(f"problem = {args.problem!r}: morph needs a plate problem, got kind {problem.kind!r}")
-    load_factory(args.method)  # fail early (e.g. qp not installed) before building anything
-    nodes = parse_mesh(args.mesh) if args.mesh is not None else None
-    from wingopt import resources
-
-    limit = resources.parse_size(args.max_memory) if args.max_memory else None
-    resources.check(resources.estimate_morph(nodes or problem.nodes, args.t_end, args.period), limit)
-    model = PlateModel.from_problem(problem, nodes)
-    common = dict(
+    summary = morph_to_directory(
+        args.problem,
+        args.shape,
+        args.method,
+        args.out,
+        nodes=parse_mesh(args.mesh) if args.mesh is not None else None,
+        compare=not args.no_compare,
+        plots=not args.no_plots,
+        max_memory=resources.parse_size(args.max_memory) if args.max_memory else None,
+        vmin=args.vmin,
+        vmax=args.vmax,
         t_end=args.t_end,
         sensor_noise=args.sensor_noise,
         seed=args.seed,
         period=args.period,
         plant=args.plant,
-        model=model,
-        max_memory=limit,
+        **options,
     )
-    result = morph(problem, args.shape, args.method, vmin=args.vmin, vmax=args.vmax, **common, **options)
-    compare = None
-    if args.method != "lqr" and not args.no_compare:
-        # The baseline, saturated at the QP's limits: the same limits, read off the QP's run.
-        compare = morph(problem, args.shape, "lqr", vmin=result.vmin, vmax=result.vmax, **common)
-    summary = write_morph_outputs(result, args.out, compare, plots=not args.no_plots)
-    from wingopt.cli.identify import print_warnings
-
-    print_warnings("morph", summary)
     _print(summary, args)
     return 0
 

@@ -48,6 +48,7 @@ from dataclasses import asdict
 
 import numpy as np
 
+from wingopt.control.kalman import SteadyStateKalman
 from wingopt.control.mpc_assembly import _shift, assemble_qp, condense
 from wingopt.control.mpc_problem import TrackingProblem
 from wingopt.control.mpc_settings import FORMULATIONS, MODES, QPSettings
@@ -82,8 +83,6 @@ def make_filter(problem: TrackingProblem, process_noise: float, measurement_nois
     as large as the modal part of the signal, so the default (1.0) trusts the model and lets the
     sensors correct slowly (``docs/control_qp.md``, sweep). Returns ``(filter, y_scale)``.
     """
-    from wingopt.control.kalman import SteadyStateKalman
-
     red = problem.reduced
     if red.output_matrix is None:
         raise InputError("closed-loop QP: the reduced model has no sensor output (reduce with output=model.sensing)")

@@ -10,15 +10,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from wingopt.errors import InputError
 from wingopt.optim.cvxpy_backend import _SOLVER
 from wingopt.optim.daqp_backend import DAQP_EXITFLAGS
+from wingopt.optim.registry import check_solver, solver_names
 from wingopt.optim.status import fail, status_from
 
 __all__ = ["LeastDistanceQP", "LDP_SOLVERS"]
 
-LDP_SOLVERS = ("clarabel", "osqp", "daqp")
-"""QP solvers of the least-distance steps (names of :data:`wingopt.optim.registry.BACKENDS`)."""
+LDP_SOLVERS = solver_names("least-distance")
+"""QP solvers of the least-distance steps: the ``least-distance`` names of the registry."""
 
 
 class LeastDistanceQP:
@@ -35,11 +35,8 @@ class LeastDistanceQP:
     """
 
     def __init__(self, solver: str = "clarabel", label: str | None = None, context: str = "mhe") -> None:
-        solver = str(solver).lower()
-        if solver not in LDP_SOLVERS:
-            raise InputError(f"qp solver = {solver!r}: expected one of {', '.join(LDP_SOLVERS)}")
-        self.solver = solver
-        self.label = label or solver
+        self.solver = check_solver(solver, "least-distance", "qp_solver")
+        self.label = label or self.solver
         self.context = context
         self._cache: dict = {}
 

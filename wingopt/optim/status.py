@@ -4,7 +4,8 @@ Backends report their own status strings (CVXPY/Clarabel/OSQP, CasADi/IPOPT/qpOA
 ProxQP); :func:`status_from` maps them to :class:`SolveStatus`, and :func:`require_success` /
 :func:`fail` turn a failure into a :class:`~wingopt.errors.SolverError` that names the backend,
 its raw status and a hint (what to try in the context that called the solver: the morphing QP or
-the MHE window).
+the MHE window). This module names statuses only; the solver names are in
+:mod:`wingopt.optim.registry`, the flags that choose them in the CLI.
 """
 
 from __future__ import annotations
@@ -36,15 +37,17 @@ HINTS = {
     SolveStatus.UNBOUNDED: "the cost is unbounded below: check that the weights are positive definite",
     SolveStatus.MAX_ITERATIONS: "raise the iteration limit or loosen the tolerances",
     SolveStatus.NUMERICAL_ERROR: "the problem may be badly scaled: check units and weights, or try another backend",
-    SolveStatus.UNKNOWN: "try another backend (--solver)",
+    SolveStatus.UNKNOWN: "try another backend",
 }
 """What to try, by status (used when the caller gives no context)."""
 
 CONTEXT_HINTS = {
-    "qp": "try another QP backend (--solver {names}), a shorter horizon, or wider limits",
-    "mhe": "try another MHE backend (--backend numpy|cvxpy|ipopt), a longer window, or check the data's units",
+    "qp": "try another QP backend, a shorter horizon, or wider limits",
+    "mhe": "try another window solver, a longer window, or check the data's units",
 }
-"""What to try, by the caller's context (``{names}`` is filled with the installed QP backends)."""
+"""What to try, by the caller's context. The context travels with the error
+(:attr:`SolverError.context <wingopt.errors.SolverError>`), so that a front end can name the
+setting that picks another solver (the CLI: ``--solver``, ``--backend``)."""
 
 
 def status_from(backend: str, raw) -> SolveStatus:
@@ -70,18 +73,14 @@ def status_from(backend: str, raw) -> SolveStatus:
 def hint(context: str | None = None, status: SolveStatus | None = None) -> str:
     """The hint of a failure: by context (``"qp"``, ``"mhe"``) if given, else by status."""
     if context is not None:
-        text = CONTEXT_HINTS.get(context, context)
-        if "{names}" in text:
-            from wingopt.optim.registry import available_backends
-
-            text = text.format(names="|".join(available_backends()))
-        return text
+        return CONTEXT_HINTS.get(context, context)
     return HINTS.get(status, "") if status is not None else ""
 
 
 def fail(backend: str, raw, context: str | None = None, status: SolveStatus | None = None) -> SolverError:
-    """The :class:`SolverError` of a failed solve (to ``raise``): backend, raw status and hint."""
-    return SolverError(backend, str(raw), hint(context, status if status is not None else status_from(backend, raw)))
+    """The :class:`SolverError` of a failed solve (to ``raise``): backend, raw status, hint and context."""
+    status = status if status is not None else status_from(backend, raw)
+    return SolverError(backend, str(raw), hint(context, status), context=context)
 
 
 def require_success(backend: str, raw, hint: str | None = None) -> SolveStatus:

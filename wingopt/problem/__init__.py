@@ -5,7 +5,6 @@
 
 from __future__ import annotations
 
-import importlib
 import importlib.util
 import re
 import tomllib
@@ -13,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from wingopt.errors import InputError, ProblemFileError
+from wingopt.problem import membrane, plate
 from wingopt.problem.fields import Table
 from wingopt.problem.membrane import MembraneProblem
 
@@ -42,8 +42,8 @@ def _problems_dir() -> Path:
 PROBLEMS_DIR = _problems_dir()
 """Directory of the built-in problem files (``wingopt._problems`` installed; ``problems/`` in a checkout)."""
 
-# kind -> module with ``from_table(root: Table, name: str)``
-_KINDS = {"membrane": "wingopt.problem.membrane", "plate": "wingopt.problem.plate"}
+_KINDS = {"membrane": membrane.from_table, "plate": plate.from_table}
+"""Problem kind -> ``from_table(root: Table, name: str)`` of its schema."""
 
 
 def builtin_problems() -> list[str]:
@@ -70,8 +70,7 @@ def parse_problem(data: dict[str, Any], source: str = "<memory>", name: str = "p
     """Validate a parsed TOML document into a problem dataclass."""
     root = Table(data, source)
     kind = root.string("kind", choices=tuple(_KINDS))
-    module = importlib.import_module(_KINDS[kind])
-    return module.from_table(root, name)
+    return _KINDS[kind](root, name)
 
 
 def load_problem(problem: str | Path):

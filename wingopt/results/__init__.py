@@ -1,12 +1,15 @@
-"""Results: atomic output directories, JSON/CSV writers, plots and reports."""
+"""Results: atomic output directories and files, JSON/CSV writers, plots and reports."""
 
 from wingopt.results.writer import (
     ResultDirectory,
     check_file_writable,
     check_writable,
     to_jsonable,
+    write_arrays_atomic,
+    write_atomic,
     write_csv,
     write_json,
+    write_json_atomic,
     write_text_atomic,
 )
 
@@ -15,7 +18,10 @@ __all__ = [
     "check_file_writable",
     "check_writable",
     "to_jsonable",
+    "write_arrays_atomic",
+    "write_atomic",
     "write_csv",
     "write_json",
+    "write_json_atomic",
     "write_text_atomic",
 ]

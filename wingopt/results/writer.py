@@ -17,7 +17,7 @@ import logging
 import os
 import shutil
 import tempfile
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -33,6 +33,9 @@ __all__ = [
     "check_writable",
     "check_file_writable",
     "write_text_atomic",
+    "write_atomic",
+    "write_json_atomic",
+    "write_arrays_atomic",
     "MARKER",
 ]
 
@@ -154,6 +157,34 @@ def write_text_atomic(path: str | os.PathLike, text: str, *, what: str = "file",
     except OSError as exc:
         raise OutputError(f"{what} = {str(path)!r}: cannot write it ({exc.strerror or exc})") from None
     return target, kept
+
+
+def write_atomic(path: str | os.PathLike, fill: Callable[[Path], None]) -> Path:
+    """``fill(tmp)`` on a temporary sibling of ``path`` (its directory created), renamed into place.
+
+    For a file rewritten while a study runs (its table, summary, records) or a cache: a reader
+    never sees it half-written, and a failed ``fill`` leaves the earlier file.
+    """
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    _replace_with(target, fill)
+    return target
+
+
+def write_json_atomic(path: str | os.PathLike, data: Any) -> Path:
+    """:func:`write_atomic` of ``data`` as JSON (:func:`to_jsonable` applied)."""
+    text = json.dumps(to_jsonable(data), indent=2) + "\n"
+    return write_atomic(path, lambda tmp: tmp.write_text(text))
+
+
+def write_arrays_atomic(path: str | os.PathLike, **arrays: Any) -> Path:
+    """:func:`write_atomic` of named arrays as ``.npz`` (``numpy.savez``; the name is kept as given)."""
+
+    def fill(tmp: Path) -> None:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+
+    return write_atomic(path, fill)
 
 
 def _pid_alive(pid: int) -> bool:

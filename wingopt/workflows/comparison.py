@@ -3,18 +3,67 @@
 Each study is a list of independent tasks (:mod:`wingopt.workflows.sweep.protocol`) run by the
 engine (serial, a local cluster, or a scheduler); the per-case pieces (simulated cases, running a
 method, scoring it) are in :mod:`wingopt.workflows.studies`.
+
+:func:`run_comparison` is the ``wingopt compare`` preset (:class:`ComparisonPreset`): the table of
+L1–L3 x noise levels x seeds for the chosen methods (with the MHE's oracle lambda), the MHE's sign
+and band study and the consistency study as one task list, recorded in ``DIR/records.jsonl`` as the
+tasks finish so that an interrupted study resumes where it stopped (nothing recorded is recomputed),
+then the report (``summary.json``, ``comparison.md``, :mod:`wingopt.workflows.comparison_report`).
 """
 
 from __future__ import annotations
 
+import json
+import time
 from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
 
+from wingopt.errors import InputError, SolverError
 from wingopt.estimation.mhe import MHESettings
+from wingopt.estimation.options import IdentifyOptions
+from wingopt.estimation.runners import mhe_settings
+from wingopt.problem import load_problem
 from wingopt.problem.membrane import MembraneProblem
+from wingopt.results import write_atomic, write_json_atomic
+from wingopt.workflows.comparison_report import (
+    checklist_markdown,
+    consistency_markdown,
+    doc_header,
+    oracle_markdown,
+    sign_markdown,
+)
 from wingopt.workflows.protocols import TRUTH_NODES
-from wingopt.workflows.studies import METHODS, ORACLE_OFFSETS, CaseRecord, record_from_dict
+from wingopt.workflows.studies import (
+    METHODS,
+    ORACLE_OFFSETS,
+    CaseRecord,
+    comparison_markdown,
+    record_from_dict,
+    summarize,
+)
+from wingopt.workflows.sweep.engine import Engine, EngineSettings
+from wingopt.workflows.sweep.protocol import (
+    consistency_rows,
+    consistency_tasks,
+    protocol_tasks,
+    run_tasks,
+    task_key,
+)
+from wingopt.workflows.sweep.records import RecordLog, read_records
+from wingopt.workflows.sweep.run import run_records
 
-__all__ = ["comparison_study", "sign_and_band_study", "consistency_study"]
+__all__ = [
+    "comparison_study",
+    "sign_and_band_study",
+    "consistency_study",
+    "ComparisonPreset",
+    "run_comparison",
+    "LOADS",
+]
+
+LOADS = ("L1", "L2", "L3")
+"""The load cases of the comparison."""
 
 
 def comparison_study(
@@ -40,8 +89,6 @@ def comparison_study(
     processes of a local dask cluster (1: this process), or ``engine``: an entered
     :class:`~wingopt.workflows.sweep.engine.Engine`. ``on_record`` is called with every new record.
     """
-    from wingopt.workflows.sweep.protocol import protocol_tasks, run_tasks, task_key
-
     settings = mhe_settings or MHESettings()
     runs = [(ld, float(nz), int(sd), m) for ld in loads for nz in noises for sd in seeds for m in methods]
     tasks, shared = protocol_tasks(problem, runs, settings, truth_nodes, oracle, oracle_offsets)
@@ -85,8 +132,6 @@ def consistency_study(
     engine=None,
 ) -> list[dict]:
     """Consistency load with the problem's 4 sensors (``None``) and sensor grids; error per layout."""
-    from wingopt.workflows.sweep.protocol import consistency_rows, consistency_tasks, run_tasks
-
     tasks, shared = consistency_tasks(problem, layouts, noise, seeds, mhe_settings, truth_nodes)
     records = run_tasks(tasks, shared, jobs, engine)
     order = {t.key: i for i, t in enumerate(tasks)}
@@ -95,3 +140,155 @@ def consistency_study(
         if progress:
             progress(f"consistency, {row['sensors']} sensors: load error {row['load_error_mean']:.4f}")
     return rows
+
+
+@dataclass(frozen=True)
+class ComparisonPreset:
+    """What ``wingopt compare`` runs (the defaults are the command's).
+
+    ``seeds`` noise seeds from ``first_seed`` for the table (``table=False``: none) with
+    ``methods``, the MHE's oracle lambda unless ``oracle=False``; the MHE's sign and band study over
+    ``sign_seeds`` seeds at 5 % noise; the consistency study; the MHE's load space and state prior
+    (:class:`~wingopt.estimation.options.IdentifyOptions`); the truth's mesh.
+    """
+
+    loads: tuple[str, ...] = LOADS
+    noises: tuple[float, ...] = (0.01, 0.05)
+    seeds: int = 5
+    first_seed: int = 0
+    methods: tuple[str, ...] = METHODS
+    table: bool = True
+    oracle: bool = True
+    sign_seeds: int = 0
+    consistency: bool = False
+    load_space: str = "fixed"
+    state_prior: str = "1"
+    truth_mesh: tuple[int, int] = TRUTH_NODES
+
+    def __post_init__(self) -> None:
+        for ld in self.loads:
+            if ld not in LOADS:
+                raise InputError(f"loads: {ld!r}: expected {', '.join(LOADS[:-1])} or {LOADS[-1]}")
+        for m in self.methods:
+            if m not in METHODS:
+                raise InputError(f"methods: {m!r}: expected some of {', '.join(METHODS)}")
+        if self.seeds < 1 or self.first_seed < 0 or self.sign_seeds < 0:
+            raise InputError("seeds: expected a positive integer (first-seed, sign-seeds: non-negative)")
+
+    def runs(self) -> tuple[list[tuple], list[tuple]]:
+        """The table's runs and the sign study's, as (load, noise, seed, method)."""
+        seeds = range(self.first_seed, self.first_seed + self.seeds)
+        table = [(ld, nz, sd, m) for ld in self.loads for nz in self.noises for sd in seeds for m in self.methods]
+        sign = [(ld, 0.05, sd, "mhe") for ld in self.loads for sd in range(self.sign_seeds)]
+        return (table if self.table else []), sign
+
+    def title(self, problem: MembraneProblem) -> str:
+        """The heading of the comparison table."""
+        last = self.first_seed + self.seeds - 1
+        seeds = f" ({self.first_seed}–{last})" if self.first_seed else ""
+        prior = "" if self.state_prior == "1" else ", state prior " + self.state_prior
+        return (
+            f"### Final errors, mean (min–max) over {self.seeds} noise seeds{seeds}; "
+            f"truth {self.truth_mesh[0]}x{self.truth_mesh[1]}, "
+            f"estimator {problem.nodes[0]}x{problem.nodes[1]}, MHE load space {self.load_space}{prior}"
+        )
+
+
+def _write_text(path: str | Path, text: str) -> None:
+    """A study's text file, replaced atomically (its directory created; no backup: it is regenerated)."""
+    write_atomic(path, lambda tmp: tmp.write_text(text))
+
+
+def _keyed(rec: dict) -> dict:
+    """A record of the compare before the study engine carries no key: derive it from its fields."""
+    if "key" not in rec and "load" in rec:
+        fields = {"load": rec["load"], "noise": rec["noise"], "seed": rec["seed"], "method": rec["method"]}
+        rec = {**rec, "key": task_key(fields), "status": "ok"}
+    return rec
+
+
+def run_comparison(
+    problem: str | Path,
+    out: str | Path,
+    preset: ComparisonPreset,
+    engine: EngineSettings,
+    *,
+    resume: bool = False,
+    doc: str | Path | None = None,
+    on_start: Callable[[Engine], None] | None = None,
+    on_record: Callable[[dict], None] | None = None,
+) -> tuple[dict, str]:
+    """Run ``preset`` on the membrane ``problem`` on the study engine into the directory ``out``.
+
+    The engine (``engine``: where the tasks run) starts once the problem is read and the tasks
+    are built, and ``on_start`` sees it. Records go to ``out/records.jsonl`` as the tasks finish
+    (``resume``: keep those there and run only the others; otherwise the file is started afresh),
+    each seen by ``on_record``; the consistency rows are kept in ``out/consistency.json``. Writes
+    ``summary.json`` and ``comparison.md`` (and the document ``doc`` with its header) atomically.
+    Returns the report (the summary) and the markdown text; a
+    :class:`~wingopt.errors.SolverError` if a task failed.
+    """
+    prob = load_problem(problem)
+    if prob.kind != "membrane":
+        raise InputError(f"problem = {str(problem)!r}: compare needs a membrane problem")
+    out = Path(out)
+    rec_path = out / "records.jsonl"
+    if resume and rec_path.exists():
+        old = read_records(rec_path)
+        if any("key" not in r for r in old):  # a pre-engine file: give its records their keys
+            _write_text(rec_path, "".join(json.dumps(_keyed(r)) + "\n" for r in old))
+    records = RecordLog(rec_path, fresh=not resume)
+    settings = mhe_settings(IdentifyOptions(load_space=preset.load_space, state_prior=preset.state_prior))
+    truth = preset.truth_mesh
+    t0 = time.perf_counter()
+
+    # One task list: the table's runs (with the oracle), the sign study's not already in the table,
+    # and the consistency study's; shared truths and models are computed once for all of them.
+    table_runs, sign_runs = preset.runs()
+    table_tasks, shared = protocol_tasks(prob, table_runs, settings, truth, preset.oracle)
+    sign_tasks, shared2 = protocol_tasks(prob, sign_runs, settings, truth, False)
+    cons_tasks, shared3 = consistency_tasks(prob, settings=settings, truth_nodes=truth)
+    cache = out / "consistency.json"
+    cons_rows = json.loads(cache.read_text()) if resume and cache.exists() else None
+    if not preset.consistency or cons_rows is not None:
+        cons_tasks = []
+    table_keys = {t.key for t in table_tasks}
+    tasks = table_tasks + [t for t in sign_tasks if t.key not in table_keys] + cons_tasks
+    shared_all = {s.key: s for s in shared + shared2 + shared3}
+    with Engine(engine) as running:
+        if on_start is not None:
+            on_start(running)
+        by, _ = run_records(tasks, list(shared_all.values()), records, running, on_record, "compare")
+    failed = [by[t.key] for t in tasks if by.get(t.key, {}).get("status") != "ok"]
+    if failed:
+        raise SolverError(
+            f"{len(failed)} study tasks",
+            f"failed, e.g. {failed[0]['key']}: {failed[0].get('error')}",
+            "see records.jsonl",
+        )
+
+    sections = []
+    report: dict = {"problem": prob.name, "truth_mesh": list(truth), "mesh": list(prob.nodes)}
+    if preset.table:
+        summ = summarize([record_from_dict(by[t.key]) for t in table_tasks])
+        report["comparison"] = summ
+        sections.append(comparison_markdown(summ, preset.title(prob)))
+        sections.append(oracle_markdown(summ))
+    if preset.sign_seeds:
+        rows = summarize([record_from_dict(by[t.key]) for t in sign_tasks])
+        report["sign_and_band"] = rows
+        sections.append(sign_markdown(rows, preset.sign_seeds))
+    if preset.consistency:
+        if cons_rows is None:
+            cons_rows = consistency_rows([by[t.key] for t in cons_tasks])
+            write_json_atomic(cache, cons_rows)
+        report["consistency"] = cons_rows
+        sections.append(consistency_markdown(cons_rows))
+    report["wall_s"] = time.perf_counter() - t0
+    sections.insert(0, checklist_markdown(report))
+    text = "\n\n".join(s for s in sections if s) + "\n"
+    write_json_atomic(out / "summary.json", report)
+    _write_text(out / "comparison.md", text)
+    if doc:
+        _write_text(doc, doc_header(str(problem), preset) + text)
+    return report, text

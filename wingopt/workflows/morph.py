@@ -1,9 +1,10 @@
 """Morph the plate into a Table 5.1 shape with a chosen controller: the ``wingopt morph`` engine.
 
 ``morph(problem, shape, method)`` builds the model, the target and the controller of ``method``
-(:data:`METHODS`, ``"module:factory"`` imported lazily), runs :func:`simulate_closed_loop` on the
-full-order plant and returns a :class:`MorphResult`; :func:`write_morph_outputs` writes the spec §7
-outputs (``summary.json``, ``voltages.csv``, figures) atomically.
+(:data:`METHODS`), runs :func:`simulate_closed_loop` on the full-order plant and returns a
+:class:`MorphResult`; :func:`write_morph_outputs` writes the spec §7 outputs (``summary.json``,
+``voltages.csv``, figures) atomically. :func:`morph_to_directory` is the ``wingopt morph`` use
+case: a problem file, the run (and the saturated LQR beside a QP run), the outputs.
 
 Voltage limits: ``method="lqr"`` saturates at ``vmin``/``vmax`` when given (each side on its own)
 and is unlimited otherwise (the seed's controller); every other method defaults to the problem's
@@ -13,7 +14,6 @@ and is unlimited otherwise (the seed's controller); every other method defaults 
 
 from __future__ import annotations
 
-import importlib
 import logging
 import time
 from dataclasses import dataclass, field
@@ -21,19 +21,33 @@ from pathlib import Path
 
 import numpy as np
 
+from wingopt import resources
 from wingopt.control.closed_loop import DEFAULT_PERIOD, ClosedLoopResult, simulate_closed_loop
-from wingopt.errors import InputError
+from wingopt.control.mpc import make_qp_controller
+from wingopt.control.tracking import make_lqr_controller
+from wingopt.errors import InputError, OutputError
+from wingopt.plate import PlateModel
+from wingopt.plate.shapes import SHAPES
+from wingopt.plots.morph import plot_morph
+from wingopt.problem import load_problem
+from wingopt.results import ResultDirectory, check_writable, write_csv, write_json
+from wingopt.validate import check_seed
 from wingopt.values import VoltageLimits
 
-__all__ = ["METHODS", "MorphResult", "morph", "load_factory", "write_morph_outputs", "resolve_limits"]
+__all__ = [
+    "METHODS",
+    "MorphResult",
+    "morph",
+    "morph_to_directory",
+    "load_factory",
+    "write_morph_outputs",
+    "resolve_limits",
+]
 
 log = logging.getLogger(__name__)
 
-METHODS = {
-    "lqr": "wingopt.control.tracking:make_lqr_controller",
-    "qp": "wingopt.control.mpc:make_qp_controller",
-}
-"""Controller factories by method name, ``"module:function"`` (imported on first use).
+METHODS = {"lqr": make_lqr_controller, "qp": make_qp_controller}
+"""Controller factories by method name.
 
 Every factory has the signature ``make_<method>_controller(model, target, *, vmin, vmax, period,
 **options) -> Controller`` (see :class:`~wingopt.control.closed_loop.Controller`).
@@ -41,20 +55,10 @@ Every factory has the signature ``make_<method>_controller(model, target, *, vmi
 
 
 def load_factory(method: str):
-    """The factory of ``method``; a clear :class:`InputError` if unknown or not installed."""
+    """The factory of ``method``; an :class:`InputError` lists the methods if it is unknown."""
     if method not in METHODS:
         raise InputError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
-    module, func = METHODS[method].split(":")
-    try:
-        mod = importlib.import_module(module)
-    except ModuleNotFoundError as exc:
-        if exc.name and module.startswith(exc.name):
-            raise InputError(f"method = {method!r}: not available in this version ({module} is missing)") from None
-        raise
-    factory = getattr(mod, func, None)
-    if factory is None:
-        raise InputError(f"method = {method!r}: {module} has no {func}()")
-    return factory
+    return METHODS[method]
 
 
 def resolve_limits(problem, method: str, vmin=None, vmax=None, patches: int | None = None) -> VoltageLimits:
@@ -197,15 +201,9 @@ def morph(
         The closed-loop run, its target, limits and timing; :meth:`MorphResult.summary` is the
         spec §7 summary.
     """
-    from wingopt import resources
-    from wingopt.plate import PlateModel
-    from wingopt.validate import check_seed
-
     t0 = time.perf_counter()
     if getattr(problem, "kind", None) != "plate":
         raise InputError(f"problem: morph needs a plate problem, got kind {getattr(problem, 'kind', None)!r}")
-    from wingopt.plate.shapes import SHAPES
-
     if shape not in SHAPES:
         raise InputError(f"shape = {shape!r}: expected one of {', '.join(SHAPES)}")
     if not (np.isfinite(t_end) and t_end > 0):
@@ -262,9 +260,6 @@ def write_morph_outputs(
     dict
         The summary written to ``summary.json``.
     """
-    from wingopt.errors import OutputError
-    from wingopt.results import ResultDirectory, write_csv, write_json
-
     summary = result.summary()
     if compare_with is not None:
         summary["compare_with"] = compare_with.summary()
@@ -282,11 +277,47 @@ def write_morph_outputs(
                 np.column_stack([cl.t, cl.tip, cl.shape_error]),
             )
             if plots:
-                from wingopt.plots.morph import plot_morph
-
                 plot_morph(tmp, result, compare_with)
     except OutputError:
         raise
     except OSError as exc:
         raise OutputError(f"out = {str(out_dir)!r}: cannot write ({exc.strerror or exc})") from None
     return summary
+
+
+def morph_to_directory(
+    problem: str | Path,
+    shape: str,
+    method: str,
+    out: str | Path,
+    *,
+    nodes: tuple[int, int] | None = None,
+    compare: bool = True,
+    plots: bool = True,
+    max_memory: float | None = None,
+    **kwargs,
+) -> dict:
+    """The ``wingopt morph`` use case: read ``problem``, morph, write the outputs into ``out``.
+
+    A QP run (any method but ``lqr``) is compared with the LQR saturated at the same limits unless
+    ``compare=False``. ``out`` is checked before any work, the run's memory estimated against
+    ``max_memory`` before the model is built. ``kwargs`` go to :func:`morph` (limits, ``t_end``,
+    noise, period, plant, and the method's options). Returns the summary written.
+    """
+    check_writable(out)
+    prob = load_problem(problem)
+    if prob.kind != "plate":
+        raise InputError(f"problem = {str(problem)!r}: morph needs a plate problem, got kind {prob.kind!r}")
+    load_factory(method)  # an unknown method fails before anything is built
+    t_end, period = kwargs.get("t_end", 2.0), kwargs.get("period", DEFAULT_PERIOD)
+    resources.check(resources.estimate_morph(nodes or prob.nodes, t_end, period), max_memory)
+    model = PlateModel.from_problem(prob, nodes)
+    result = morph(prob, shape, method, model=model, max_memory=max_memory, **kwargs)
+    baseline = None
+    if method != "lqr" and compare:
+        # The baseline, saturated at the QP's limits: the same limits, read off the QP's run.
+        common = {k: v for k, v in kwargs.items() if k in ("t_end", "sensor_noise", "seed", "period", "plant")}
+        baseline = morph(
+            prob, shape, "lqr", vmin=result.vmin, vmax=result.vmax, model=model, max_memory=max_memory, **common
+        )
+    return write_morph_outputs(result, out, baseline, plots=plots)

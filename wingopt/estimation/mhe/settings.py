@@ -10,8 +10,9 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation.load_space import LoadSpaceKind
-from wingopt.estimation.mhe.solvers import BACKENDS, QP_SOLVERS
+from wingopt.estimation.mhe.solvers import WINDOW_SOLVERS
 from wingopt.estimation.regularization import LambdaRule
+from wingopt.optim.registry import solver_names
 
 __all__ = ["MHESettings", "LOAD_MODELS", "STATE_PRIOR_EVIDENCE", "SIGN_MARGIN"]
 
@@ -168,10 +169,10 @@ class MHESettings:
             LoadSpaceKind(self.load_space)
         except ValueError:
             bad("load_space", "'fixed' or 'free'")
-        if self.backend not in BACKENDS:
-            bad("backend", " | ".join(BACKENDS))
-        if self.qp_solver not in QP_SOLVERS:
-            bad("qp_solver", " or ".join(QP_SOLVERS))
+        if self.backend not in WINDOW_SOLVERS:
+            bad("backend", "one of " + ", ".join(WINDOW_SOLVERS))
+        if self.qp_solver not in solver_names("least-distance"):
+            bad("qp_solver", "one of " + ", ".join(solver_names("least-distance")))
         if self.regularization is not None and not (np.isfinite(self.regularization) and self.regularization > 0):
             bad("regularization", "a positive number or None (from the data)")
         try:

@@ -3,16 +3,19 @@
 * ``numpy`` and ``cvxpy``: Levenberg–Marquardt (:mod:`wingopt.estimation.mhe.lm`);
 * ``ipopt``: the whole nonlinear window problem with IPOPT (:mod:`wingopt.estimation.mhe.ipopt`).
 
-The QP steps, the names of their QP solvers, the status mapping and the failure path
-(:class:`~wingopt.errors.SolverError` naming backend, raw status and hint) come from
-:mod:`wingopt.optim`; the estimation modules keep the Gauss–Newton/LM logic and the window NLP.
+The names (:data:`WINDOW_SOLVERS`, and the QP solvers of the ``cvxpy`` steps) are the ``window``
+and ``least-distance`` capabilities of :mod:`wingopt.optim.registry`; the QP steps, the status
+mapping and the failure path (:class:`~wingopt.errors.SolverError` naming backend, raw status and
+hint) come from :mod:`wingopt.optim` too. The estimation modules keep the Gauss–Newton/LM logic
+and the window NLP.
 """
 
 from __future__ import annotations
 
 from wingopt.errors import InputError
 from wingopt.estimation.mhe.ipopt import IPOPT_HESSIANS, IpoptSolver
-from wingopt.estimation.mhe.lm import QP_SOLVERS, CvxpySolver, NumpySolver, WindowSolution, WindowSolver
+from wingopt.estimation.mhe.lm import CvxpySolver, NumpySolver, WindowSolution, WindowSolver
+from wingopt.optim.registry import solver_names
 
 __all__ = [
     "WindowSolution",
@@ -21,16 +24,16 @@ __all__ = [
     "CvxpySolver",
     "IpoptSolver",
     "make_solver",
-    "BACKENDS",
-    "QP_SOLVERS",
+    "WINDOW_SOLVERS",
     "IPOPT_HESSIANS",
 ]
 
-BACKENDS = ("numpy", "cvxpy", "ipopt")
+WINDOW_SOLVERS = solver_names("window")
+"""The window solvers (``MHESettings.backend``): numpy, cvxpy, ipopt."""
 
 
 def make_solver(backend: str = "numpy", qp_solver: str = "clarabel", **kwargs) -> WindowSolver:
-    """A window solver by name: ``numpy``, ``cvxpy`` (``qp_solver`` clarabel|osqp) or ``ipopt``."""
+    """A window solver by name (:data:`WINDOW_SOLVERS`); ``qp_solver`` is the QP solver of ``cvxpy``'s steps."""
     if backend == "numpy":
         return NumpySolver(**kwargs)
     if backend == "cvxpy":
@@ -39,4 +42,4 @@ def make_solver(backend: str = "numpy", qp_solver: str = "clarabel", **kwargs) -
         if kwargs.get("hessian") in ("newton", "gauss-newton"):
             kwargs.pop("hessian")
         return IpoptSolver(**kwargs)
-    raise InputError(f"backend = {backend!r}: expected one of {', '.join(BACKENDS)}")
+    raise InputError(f"backend = {backend!r}: expected one of {', '.join(WINDOW_SOLVERS)}")

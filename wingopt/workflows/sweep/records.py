@@ -4,7 +4,8 @@
 finished task adds one line with a single ``write`` of the complete line, then flush and fsync,
 so a crash loses at most the line being written. A torn last line (no newline, or not JSON) is
 ignored with a warning when read, and cut off before the next append. Every other output
-(table, summary) is written to a temporary file and renamed into place (:func:`write_atomic`).
+(table, summary) is written to a temporary file and renamed into place
+(:func:`wingopt.results.write_atomic`).
 """
 
 from __future__ import annotations
@@ -13,14 +14,13 @@ import json
 import logging
 import math
 import os
-import tempfile
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.results import to_jsonable, write_csv
+from wingopt.results import to_jsonable, write_atomic, write_csv
 
 __all__ = [
     "RecordLog",
@@ -29,8 +29,6 @@ __all__ = [
     "TIMING_FIELDS",
     "summary_rows",
     "write_table",
-    "write_atomic",
-    "write_json_atomic",
 ]
 
 log = logging.getLogger(__name__)
@@ -116,25 +114,6 @@ class RecordLog:
 
     def read(self) -> list[dict]:
         return read_records(self.path)
-
-
-def write_atomic(path: str | os.PathLike, write: Callable[[Path], None]) -> None:
-    """Call ``write(tmp)`` on a temporary sibling of ``path`` and rename it into place."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def write_json_atomic(path: str | os.PathLike, data) -> None:
-    """Atomic JSON output (:func:`wingopt.results.to_jsonable` applied)."""
-    write_atomic(path, lambda p: p.write_text(json.dumps(to_jsonable(data), indent=2) + "\n"))
 
 
 def _stats(values: Sequence[float]) -> tuple[float, float, float, float]:

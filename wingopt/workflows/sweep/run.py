@@ -16,6 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from wingopt.errors import OutputError
+from wingopt.results import write_json_atomic
 from wingopt.workflows.studies import protocol_sign
 from wingopt.workflows.sweep.engine import Engine, SharedInput, SweepTask
 from wingopt.workflows.sweep.protocol import (
@@ -27,7 +28,7 @@ from wingopt.workflows.sweep.protocol import (
     task_cost,
     task_key,
 )
-from wingopt.workflows.sweep.records import RecordLog, by_key, summary_rows, write_json_atomic, write_table
+from wingopt.workflows.sweep.records import RecordLog, by_key, summary_rows, write_table
 from wingopt.workflows.sweep.spec import SweepSpec
 
 __all__ = ["sweep_tasks", "run_sweep", "METRICS", "run_records"]

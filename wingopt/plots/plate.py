@@ -1,12 +1,11 @@
 """Figures of the plate wing: the layout (Figure 5.4 reconstructed) and mode shapes.
 
 Built on :class:`matplotlib.figure.Figure` directly (no pyplot state), so they work under any
-backend and in threads; ``save`` writes a PNG.
+backend and in threads; :func:`wingopt.plots.save` writes them (``tight=False``: they lay
+themselves out).
 """
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
@@ -14,7 +13,7 @@ from matplotlib.patches import Rectangle
 
 from wingopt.problem.plate import PlateProblem
 
-__all__ = ["layout_figure", "modes_figure", "save"]
+__all__ = ["layout_figure", "modes_figure"]
 
 
 def layout_figure(problem: PlateProblem, mesh: tuple[int, int] | None = (7, 31)) -> Figure:
@@ -75,11 +74,3 @@ def modes_figure(model, count: int = 4) -> Figure:
     nx, ny = model.problem.nodes
     fig.suptitle(f"mode shapes, {nx}x{ny} mesh (w normalised; black: nodal lines)", fontsize=9)
     return fig
-
-
-def save(fig: Figure, path: str | Path, dpi: int = 150) -> Path:
-    """Write ``fig`` as a PNG (creating the directory)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=dpi)
-    return path
