@@ -15,6 +15,7 @@ import re
 from wingopt.cli import follow
 from wingopt.errors import InputError
 from wingopt.estimation.registry import METHOD_ALIASES, METHODS, MODEL_ALIASES, MODELS
+from wingopt.optim.registry import solver_names
 from wingopt.results import to_jsonable
 from wingopt.workflows.protocols import TRUTHS
 
@@ -120,8 +121,10 @@ def register(sub, common) -> None:
     t.add_argument("--truth-damping", type=float, default=1.0, help="truth damping factor (default 1)")
     t.add_argument("--gust", action="store_true", help="1-cos gust on the load: +60 %% over 0.2 s from t = 0.4 s")
     g = p.add_argument_group("estimator options (each refused by an estimator that does not use it)")
-    g.add_argument("--backend", dest="solver", choices=("numpy", "cvxpy", "ipopt"), help="mhe window solver (numpy)")
-    g.add_argument("--qp-solver", choices=("clarabel", "osqp", "daqp"), help="QP solver of --backend cvxpy (clarabel)")
+    g.add_argument("--backend", dest="solver", choices=solver_names("window"), help="mhe window solver (numpy)")
+    g.add_argument(
+        "--qp-solver", choices=solver_names("least-distance"), help="QP solver of --backend cvxpy (clarabel)"
+    )
     g.add_argument("--load-space", choices=("fixed", "free"), help="mhe load basis (default fixed)")
     g.add_argument(
         "--state-prior",

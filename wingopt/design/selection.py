@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wingopt.errors import InputError, SolverError
+from wingopt.optim.registry import check_solver, solver_names
 
 __all__ = ["Relaxation", "relax", "round_weights", "swap_improve", "greedy", "overlap_matrix", "random_layouts"]
 
@@ -108,7 +109,7 @@ def relax(criterion, count: int, rank: int = 12, solver: str | None = None) -> R
             terms.append((const_r[j] + cp.matrix_frac(Xh, Y)) / criterion.scale[j])
     agg = cp.sum(cp.hstack(terms)) / J if criterion.aggregate == "mean" else cp.max(cp.hstack(terms))
     prob = cp.Problem(cp.Minimize(agg), [w >= 0, w <= 1, cp.sum(w) == count])
-    tried = [solver] if solver else ["CLARABEL", "SCS"]
+    tried = [check_solver(solver, "sdp").upper()] if solver else [n.upper() for n in solver_names("sdp")]
     last = None
     for name in tried:
         try:

@@ -15,6 +15,7 @@ import re
 from dataclasses import dataclass
 
 from wingopt.errors import InputError
+from wingopt.optim.registry import check_solver
 from wingopt.values import LambdaChoice
 
 __all__ = ["IdentifyOptions", "OPTION_FLAGS", "LOAD_MODELS", "parse_duration"]
@@ -141,9 +142,9 @@ class IdentifyOptions:
             if getattr(self, name) is not None:
                 set_(name, parse_duration(getattr(self, name), name))
         if self.solver is not None:
-            _choice("solver", self.solver, ("numpy", "cvxpy", "ipopt"))
+            check_solver(self.solver, "window", "solver")
         if self.qp_solver is not None:
-            _choice("qp_solver", self.qp_solver, ("clarabel", "osqp", "daqp"))
+            check_solver(self.qp_solver, "least-distance", "qp_solver")
         if self.modes is not None:
             if isinstance(self.modes, bool) or not isinstance(self.modes, int) or self.modes < 1:
                 raise InputError(f"modes = {self.modes!r}: expected a positive whole number of membrane modes")

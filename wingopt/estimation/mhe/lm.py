@@ -22,15 +22,12 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation.mhe.window import WindowProblem
-from wingopt.optim.least_distance import LDP_SOLVERS, LeastDistanceQP
+from wingopt.optim.least_distance import LeastDistanceQP
 from wingopt.optim.status import SolveStatus, fail, status_from
 
-__all__ = ["WindowSolution", "WindowSolver", "NumpySolver", "CvxpySolver", "QP_SOLVERS"]
+__all__ = ["WindowSolution", "WindowSolver", "NumpySolver", "CvxpySolver"]
 
 log = logging.getLogger(__name__)
-
-QP_SOLVERS = LDP_SOLVERS
-"""QP solvers of the ``cvxpy`` backend's steps (:data:`wingopt.optim.least_distance.LDP_SOLVERS`)."""
 
 
 @dataclass(eq=False)
