@@ -9,7 +9,17 @@
 """
 
 from wingopt.membrane.forward import PHYSICS, ForwardRecord, MembraneForward, forward_model
-from wingopt.membrane.loads import LOAD_CASES, Gust, PressureLoad, bubble, leading_edge_load, load_case
+from wingopt.membrane.loads import (
+    LOAD_CASES,
+    TUNNEL_LOADS,
+    Buffeting,
+    Gust,
+    PressureLoad,
+    bubble,
+    leading_edge_load,
+    load_case,
+    tunnel_load,
+)
 from wingopt.membrane.model import MembraneModel, membrane_space
 from wingopt.membrane.parameters import MembraneParameters
 from wingopt.membrane.sensors import StretchSensors, add_noise, noise_std_for
@@ -26,6 +36,9 @@ __all__ = [
     "leading_edge_load",
     "bubble",
     "Gust",
+    "Buffeting",
+    "tunnel_load",
+    "TUNNEL_LOADS",
     "LOAD_CASES",
     "MembraneParameters",
     "PHYSICS",

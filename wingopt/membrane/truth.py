@@ -7,9 +7,10 @@ Gaussian noise of ``p * max_t |s_i(t)|`` per sensor (spec §2) and drops samples
 :class:`TruthRecord` carries the truth (load, deflection, lift history, parameters) and the error
 metrics of spec §2: relative L2 norms over the membrane, not coefficient norms.
 
-Starts: ``"bubble"`` (the seed's 1 cm bubble at rest, spec §2), ``"rest"`` (flat, at rest) and
+Starts: ``"bubble"`` (the seed's 1 cm bubble at rest, spec §2), ``"rest"`` (flat, at rest),
 ``"static"`` (at rest in the static equilibrium of the load at ``t = 0``: a wing already loaded when
-the recording starts, as in a wind tunnel).
+the recording starts, as in a wind tunnel) and ``"shape"`` (at rest in a given deflection field: a
+release from a push, a calibration record).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from wingopt.membrane.sensors import add_noise
 
 __all__ = ["RecordProtocol", "Trajectory", "TruthRecord", "simulate_truth", "relative_l2", "STARTS"]
 
-STARTS = ("bubble", "rest", "static")
+STARTS = ("bubble", "rest", "static", "shape")
 
 
 def relative_l2(space, truth, estimate) -> float:
@@ -58,6 +59,8 @@ class RecordProtocol:
         Multiplies the pressure field over time (a gust, buffeting); default 1.
     drop : float
         Fraction of samples dropped at random (rows of NaN, as a DAQ's lost frames).
+    initial_shape : callable ``(x, y) -> w``, optional
+        The deflection of the ``"shape"`` start (m).
     """
 
     t_end: float = 1.0
@@ -68,6 +71,7 @@ class RecordProtocol:
     seed: int | None = 0
     load_factor: Callable | None = None
     drop: float = 0.0
+    initial_shape: Callable | None = None
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.t_end) and self.t_end > 0):
@@ -80,6 +84,8 @@ class RecordProtocol:
             raise InputError(f"noise = {self.noise!r}: expected a fraction of the sensors' peak in [0, 1] (0.01 = 1 %)")
         if not (0 <= self.drop < 1):
             raise InputError(f"drop = {self.drop!r}: expected a fraction of samples in [0, 1)")
+        if (self.start == "shape") != (self.initial_shape is not None):
+            raise InputError("start = 'shape' goes with an initial_shape (a deflection field), and only it")
 
     def replace(self, **kw) -> RecordProtocol:
         return dataclasses.replace(self, **kw)
@@ -201,6 +207,8 @@ def simulate_truth(forward, load: str | PressureLoad, protocol: RecordProtocol =
         z0 = model.project(bubble(problem.width, problem.height, protocol.bubble_peak))
     elif protocol.start == "static":
         z0 = forward.equilibrium(factor[0] * f)
+    elif protocol.start == "shape":
+        z0 = model.project(protocol.initial_shape)
     else:
         z0 = None
     rec = forward.run(forcing, protocol.t_end, dt=dt, z0=z0)

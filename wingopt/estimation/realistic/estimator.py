@@ -59,7 +59,9 @@ class RealisticSettings:
         Modes whose initial displacement and velocity are unknowns (the others start at the prior
         mean: they decay within a few ms).
     shapes : int
-        Load shapes (smoothest of ``Lam``).
+        Load shapes (smoothest of ``Lam``, zero on the frame).
+    edge_shapes : int
+        Free-edge load shapes more (:class:`~.load_model.LoadShapes`): loads that act up to the frame.
     membrane : {"auto", "nonlinear", "linear"}
         ``nonlinear``: the Berger model; ``linear``: the same estimator with the deflection's own
         stretch left out; ``auto``: both are fitted (constant load) and the one with the smaller
@@ -91,6 +93,7 @@ class RealisticSettings:
     substeps: int = 2
     substep_s: float = 0.5e-3
     shapes: int = 15
+    edge_shapes: int = 0
     membrane: str = "auto"
     free: tuple[str, ...] | None = None
     prestrain_rel: float | None = None
@@ -197,7 +200,7 @@ def realistic_identify(
     dt = float(np.median(np.diff(meas.t)))
     substeps = max(s.substeps, int(np.ceil(dt / s.substep_s - 1e-9)))
     bm = modal_model(model, s.membrane_model, min(s.modes, model.n), dt, substeps, s.stretch_gain, s.cubic_modes)
-    shapes = LoadShapes.build(model, s.shapes, p0, s.kappa, s.prior_power)
+    shapes = LoadShapes.build(model, s.shapes, p0, s.kappa, s.prior_power, s.edge_shapes)
     prior = ParameterPrior.from_problem(problem, s.free, s.prestrain_rel, s.damping_rel)
     x_mean, x_std, bubble_known = initial_state_prior(bm, problem, meas.values)
     candidates = {}
@@ -372,4 +375,5 @@ def _result(rp, fit: Fit, fits, chosen, ad, sigma, noise_source, wall, s, spread
         regularization=float(s.kappa),
         wall_s=wall,
         info=info,
+        load_space=None if shapes.space is None else shapes.space.space,
     )

@@ -8,7 +8,13 @@
   as rough as the ``s``-th shape is expected ``(mu_s / mu_1)^power`` times smaller than the prior
   pressure ``P0`` (the problem's ``initial_load``; ``power = 1`` is the seed's ``f^T Lam f``
   regulariser with a fixed weight). This prior is fixed before any data are seen and enters
-  the band;
+  the band. A pressure that acts up to the frame (an aerodynamic load peaks at the leading edge)
+  needs shapes that are not zero there: ``edge_shapes`` more, the smoothest of the free-edge
+  spline space (eigenvectors of ``(Lam_f, Gram_f)``: the constant, ``x``, ``y``, ``xy``, ...), with
+  the prior std ``kappa |P0| sqrt(A) min(1, k^4 / mu)`` (``k^4 = (pi/W)^4 + (pi/L)^4``, the
+  smoothest interior shape's roughness): a uniform pressure of ``P0`` is as likely as the first
+  interior shape. The four sensors do not resolve these from the interior shapes, so the
+  posterior keeps their spread: the lift band covers a load the sensors cannot tell apart;
 * **amplitude** ``g(t)``: piecewise linear on knots ``knot_s`` apart (seconds), prior ``g ~ N(0,
   level^2)`` per knot plus a second-difference (acceleration) prior of ``accel`` (1/s^2, relative to
   the steady load): the lift may change within tens of ms while the shape stays. ``g`` is off for a
@@ -23,6 +29,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from wingopt.errors import InputError
+from wingopt.estimation.load_space import LoadSpace, build_load_space
 from wingopt.membrane import MembraneModel
 
 __all__ = ["LoadShapes", "GustAmplitude"]
@@ -34,27 +41,42 @@ class LoadShapes:
 
     Attributes
     ----------
-    shapes : ndarray ``(n, count)``
-        Load coefficients of each shape (``∫ psi_s^2 = 1``).
+    shapes : ndarray ``(n_f, count)``
+        Coefficients of each shape (``∫ psi_s^2 = 1``) in the load basis: the deflection basis, or
+        with ``edge_shapes`` the free-edge spline basis of ``space``.
     mu : ndarray ``(count,)``
         Roughness ``∫ (psi_xx^2 + psi_yy^2)``.
     prior_std : ndarray ``(count,)``
         Prior standard deviation of each coefficient (Pa m).
     lift_row : ndarray ``(count,)``
         ``∫ psi_s``: lift = ``lift_row @ c``.
+    forces : ndarray ``(n, count)``
+        Load vector ``∫ phi_w psi_s`` of each shape in the deflection equation (``p = M f`` for a
+        shape of the deflection basis).
+    space : LoadSpace or None
+        The load basis of ``shapes`` (``None``: the deflection basis).
     """
 
     shapes: np.ndarray
     mu: np.ndarray
     prior_std: np.ndarray
     lift_row: np.ndarray
+    forces: np.ndarray
+    space: LoadSpace | None = None
 
     @classmethod
     def build(
-        cls, model: MembraneModel, count: int = 15, pressure: float = 200.0, kappa: float = 1.0, power: float = 1.0
+        cls,
+        model: MembraneModel,
+        count: int = 15,
+        pressure: float = 200.0,
+        kappa: float = 1.0,
+        power: float = 1.0,
+        edge_shapes: int = 0,
     ) -> LoadShapes:
         """``count`` smoothest shapes; ``pressure`` the prior pressure scale (Pa), ``kappa`` its factor,
-        ``power`` the decay of the prior std with roughness, ``(mu_1/mu_s)^power``."""
+        ``power`` the decay of the prior std with roughness, ``(mu_1/mu_s)^power``; ``edge_shapes``
+        smoothest free-edge shapes more (a load that acts up to the frame)."""
         if not 1 <= count <= model.n:
             raise InputError(f"load shapes = {count}: expected 1..{model.n}")
         if not (np.isfinite(pressure) and pressure != 0 and kappa > 0):
@@ -65,24 +87,45 @@ class LoadShapes:
         lift = vecs.T @ model.basis_integrals
         # Orientation: a positive first coefficient means a positive mean pressure.
         sign = np.where(lift < 0, -1.0, 1.0)
-        return cls(vecs * sign, mu, std, lift * sign)
+        vecs, lift = vecs * sign, lift * sign
+        forces = np.asarray(model.gram @ vecs)
+        if not edge_shapes:
+            return cls(vecs, mu, std, lift, forces)
+        free = build_load_space(model, "free", edge_weight=0.0)
+        if not 0 < edge_shapes <= free.n:
+            raise InputError(f"edge shapes = {edge_shapes!r}: expected 0..{free.n}")
+        muf, V = sla.eigh(free.regularizer.toarray(), free.gram.toarray(), subset_by_index=(0, edge_shapes - 1))
+        muf = np.maximum(muf, 0.0)
+        liftf = V.T @ free.basis_integrals
+        signf = np.where(liftf < 0, -1.0, 1.0)
+        V, liftf = V * signf, liftf * signf
+        k4 = (np.pi / model.problem.width) ** 4 + (np.pi / model.problem.height) ** 4
+        stdf = kappa * abs(pressure) * np.sqrt(area) * np.minimum(1.0, k4 / np.maximum(muf, 1e-300))
+        return cls(
+            np.hstack([model.space.transform @ vecs, V]),
+            np.concatenate([mu, muf]),
+            np.concatenate([std, stdf]),
+            np.concatenate([lift, liftf]),
+            np.hstack([forces, np.asarray(free.coupling @ V)]),
+            free,
+        )
 
     @classmethod
     def none(cls, model: MembraneModel) -> LoadShapes:
         """No load at all (a calibration record: free vibration)."""
-        return cls(np.zeros((model.n, 0)), np.zeros(0), np.zeros(0), np.zeros(0))
+        return cls(np.zeros((model.n, 0)), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((model.n, 0)))
 
     @property
     def count(self) -> int:
         return self.mu.size
 
     def coefficients(self, c: np.ndarray) -> np.ndarray:
-        """Load coefficients (deflection basis) of shape coefficients ``c`` (``(..., count)``)."""
+        """Load coefficients (in the load basis, :attr:`space`) of shape coefficients ``c`` (``(..., count)``)."""
         return np.asarray(c) @ self.shapes.T
 
-    def fit(self, model: MembraneModel, f: np.ndarray) -> np.ndarray:
-        """Shape coefficients of the Gram projection of load coefficients ``f``."""
-        return self.shapes.T @ (model.gram @ f)
+    def modal_forces(self, modes: np.ndarray) -> np.ndarray:
+        """Modal force ``Phi^T p`` of each shape ``(count, m)`` for mode shapes ``Phi`` ``(n, m)``."""
+        return (modes.T @ self.forces).T
 
 
 @dataclass(frozen=True)

@@ -145,7 +145,7 @@ class RecordProblem:
     @cached_property
     def _force_shapes(self) -> np.ndarray:
         """Modal forces of the load shapes ``(n_shapes, m)``."""
-        return (self.model.input_matrix @ self.shapes.shapes).T
+        return self.shapes.modal_forces(self.model.shapes)
 
     @cached_property
     def valid(self) -> np.ndarray:

@@ -140,7 +140,7 @@ class NonlinearStreamingEstimator:
         self.bm, self.m, self.n, self.d = bm, m, 2 * m + ns + npar, 2 * ms + ns + npar
         self.ls, self.ps = slice(2 * m, 2 * m + ns), slice(2 * m + ns, self.n)  # in the state x
         self.lc, self.pc = slice(2 * ms, 2 * ms + ns), slice(2 * ms + ns, self.d)  # in the unknowns theta
-        self._forces = (bm.input_matrix @ self.shapes.shapes).T * self.shapes.prior_std[:, None]  # per unknown
+        self._forces = self.shapes.modal_forces(bm.shapes) * self.shapes.prior_std[:, None]  # per unknown
         ts = max(s.tracking_substeps, int(math.ceil(dt / (2.0 * s.substep_s) - 1e-9)))
         if fvk:  # the batch's integrator (start-up) and the filter's (provisional, tracking)
             self.fit_sampler = FvKSample(bm, self._forces, self.lc, self.pc)
