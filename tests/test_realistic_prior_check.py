@@ -19,10 +19,11 @@ def problem_model():
     return problem, MembraneModel.from_problem(problem)
 
 
-def _run(problem_model, load):
+def _run(problem_model, load, frame="off"):
+    """The load-prior check alone (``frame="off"``: only the interior load prior), or with the frame check."""
     problem, model = problem_model
     case = simulate_case(problem, load, 0.01, 0, (33, 17), 0.5, truth="fvk", tell_noise=False)
-    return case, realistic_identify(model, case.measurements, RealisticSettings(membrane_model="fvk"))
+    return case, realistic_identify(model, case.measurements, RealisticSettings(membrane_model="fvk", frame=frame))
 
 
 def test_an_edge_load_outside_the_prior_is_flagged_refitted_and_covered(problem_model):
@@ -75,3 +76,22 @@ def test_the_prestrains_carry_the_modal_models_split_term(problem_model):
     assert res.info["parameters_model_form_rel"] == {"prestrain": PRESTRAIN_MODEL_FORM_REL}
     for name in ("prestrain_x", "prestrain_y"):
         assert PRESTRAIN_MODEL_FORM_REL * est[name] <= std[name] < 0.2 * est[name]  # above the term, below the prior
+
+
+@pytest.mark.parametrize("load, used", [("L1", "interior"), ("L3", "frame")])
+def test_the_evidence_tells_whether_the_pressure_reaches_the_frame(problem_model, load, used):
+    """Two load priors (zero on the frame; acting up to it) weighed by the record's evidence. Measured
+    (this record, 33x17 FvK truth, 0.5 s): L1 keeps the interior prior and its accuracy; L3 (largest on
+    an edge) takes the frame prior (evidence +6.5 nats, weight 0.9986), -5.1 % ± 6.9 % (the interior
+    prior's -7 %)."""
+    case, res = _run(problem_model, load, frame="auto")
+    fc = res.info["frame_check"]
+    assert fc["used"] == used or (used == "frame" and fc["used"] == "mixture" and fc["weight_frame"] > 0.99)
+    z = fc["log_evidence"]
+    assert (z["frame"] > z["interior"] + 3) == (used == "frame")
+    err = res.lift[-1] - case.true_lift
+    assert abs(err) < 2 * res.lift_std[-1]
+    if used == "interior":
+        assert abs(err) < 0.03 * case.true_lift and res.load_space is None
+    else:
+        assert abs(err) < 0.06 * case.true_lift and res.load_space is not None  # the free-edge load basis

@@ -25,11 +25,12 @@ import numpy as np
 from wingopt.errors import InputError
 from wingopt.estimation.noise import resolve_noise_std
 from wingopt.estimation.realistic.adequacy import assess
-from wingopt.estimation.realistic.estimator import RealisticSettings, initial_state_prior, modal_model
+from wingopt.estimation.realistic.estimator import RealisticSettings
 from wingopt.estimation.realistic.load_model import LoadShapes
 from wingopt.estimation.realistic.model_form import prestrain_std_with_model_form
 from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior, RecordProblem
 from wingopt.estimation.realistic.solver import levenberg_marquardt
+from wingopt.estimation.realistic.start import initial_state_prior, modal_model
 from wingopt.measurements import Measurements
 from wingopt.membrane import MembraneModel
 

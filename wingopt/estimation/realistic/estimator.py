@@ -18,7 +18,6 @@ Levenberg–Marquardt with exact Jacobians (:mod:`.record_problem`, :mod:`.solve
 from __future__ import annotations
 
 import dataclasses
-import functools
 import logging
 import time
 from dataclasses import dataclass, field
@@ -28,16 +27,18 @@ import numpy as np
 from wingopt.errors import InputError
 from wingopt.estimation.noise import resolve_noise_std
 from wingopt.estimation.realistic.adequacy import assess
+from wingopt.estimation.realistic.frame_check import embed, frame_shapes, log_evidence, weigh
 from wingopt.estimation.realistic.load_model import GustAmplitude, LoadShapes
 from wingopt.estimation.realistic.model_form import PRESTRAIN_MODEL_FORM_REL, prestrain_std_with_model_form
 from wingopt.estimation.realistic.prior_check import load_prior_check
 from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior, RecordProblem
 from wingopt.estimation.realistic.solver import Fit, levenberg_marquardt
+from wingopt.estimation.realistic.start import initial_state_prior, modal_model, scan
 from wingopt.estimation.realistic.tension_profile import tension_profile
 from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements.series import Measurements
-from wingopt.membrane import MembraneModel, bubble
-from wingopt.membrane.modal import BergerModal, FvKModal, ModalMembrane
+from wingopt.membrane import MembraneModel
+from wingopt.membrane.modal import FvKModal
 
 __all__ = ["RealisticSettings", "realistic_identify", "LOAD_MODELS", "MEMBRANE_MODELS"]
 
@@ -62,6 +63,9 @@ class RealisticSettings:
         Load shapes (smoothest of ``Lam``, zero on the frame).
     edge_shapes : int
         Free-edge load shapes more (:class:`~.load_model.LoadShapes`): loads that act up to the frame.
+    frame : {"auto", "off"}
+        ``auto``: also fit the prior whose load acts up to the frame and weigh the two by their
+        evidence (:mod:`.frame_check`); ``off``: the shapes as given.
     membrane : {"auto", "nonlinear", "linear"}
         ``nonlinear``: the Berger model; ``linear``: the same estimator with the deflection's own
         stretch left out; ``auto``: both are fitted (constant load) and the one with the smaller
@@ -94,6 +98,7 @@ class RealisticSettings:
     substep_s: float = 0.5e-3
     shapes: int = 15
     edge_shapes: int = 0
+    frame: str = "auto"
     membrane: str = "auto"
     free: tuple[str, ...] | None = None
     prestrain_rel: float | None = None
@@ -113,67 +118,13 @@ class RealisticSettings:
             raise InputError(f"membrane_model = {self.membrane_model!r}: expected one of {', '.join(MEMBRANE_MODELS)}")
         if self.membrane not in ("auto", "nonlinear", "linear"):
             raise InputError(f"membrane = {self.membrane!r}: expected auto, nonlinear or linear")
+        if self.frame not in ("auto", "off"):
+            raise InputError(f"frame = {self.frame!r}: expected auto or off")
         if self.load_model not in LOAD_MODELS:
             raise InputError(f"load_model = {self.load_model!r}: expected one of {', '.join(LOAD_MODELS)}")
 
     def replace(self, **kw) -> RealisticSettings:
         return dataclasses.replace(self, **kw)
-
-
-def initial_state_prior(bm: ModalMembrane, problem, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
-    """Prior mean and std of ``[q0, q0']``: the file's bubble when stated, else zero at the data's scale."""
-    peak = problem.identification.initial_deflection
-    md = bm.m
-    omega = bm.omega()[:md]
-    known = peak != 0
-    if known:
-        q = bm.to_modal(bm.model.project(bubble(problem.width, problem.height, peak)))[:md]
-        amp = abs(q[0])
-    else:
-        q = np.zeros(md)
-        smax = np.nanmax(np.abs(y))
-        amp = float(np.sqrt(smax / np.max(np.abs(bm.sensor_matrices[:, 0, 0]))))
-    sq = np.maximum(np.abs(q), amp * omega[0] / omega)
-    sv = amp * omega[0] * np.ones(md)
-    return np.concatenate([q, np.zeros(md)]), np.concatenate([sq, sv]), known
-
-
-SCAN_S = 0.3
-"""Seconds of the record the start-up scan simulates: the bubble's transient and the steady level,
-all a ranking of load amplitudes needs (the fit then uses every sample). The scan was 15 % of a
-1 s record's estimation; the chosen start was the same on every record of the robustness set."""
-
-
-def _scan(rp: RecordProblem, sign_pref: float) -> np.ndarray:
-    """Best start on an amplitude grid along the smoothest shape (both signs), one batch run on the
-    record's first ``SCAN_S`` seconds (its data cost scaled to the whole record's)."""
-    grid = np.array([0.1, 0.2, 0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 3.0])
-    amps = np.concatenate([grid, -grid])
-    th = np.zeros((amps.size, rp.dim))
-    th[:, rp.slices["c"].start] = amps
-    n = int(np.searchsorted(rp.t, rp.t[0] + SCAN_S, side="right"))
-    short = rp if n >= rp.t.size - 1 else dataclasses.replace(rp, t=rp.t[:n], y=rp.y[:n])
-    weight = rp.n_data / max(short.n_data, 1)
-    Q = short.trajectory(th).real
-    costs = []
-    for b in range(amps.size):
-        pred = short.model.outputs(Q[:, b])
-        r = ((short.y - pred) / short.sigma)[short.valid]
-        costs.append(weight * float(r @ r))
-    costs = np.array(costs) + amps**2
-    costs[~np.isfinite(costs)] = np.inf  # a start the explicit integrator cannot follow (FvK at 3 prior std)
-    best = int(np.argmin(costs))
-    log.debug("scan: best amplitude %+.2f prior std (cost %.4g)", amps[best], costs[best])
-    return th[best]
-
-
-@functools.lru_cache(maxsize=4)
-def modal_model(model, kind, modes, dt, substeps, stretch_gain, cubic_modes) -> ModalMembrane:
-    """The estimator's modal model, built once per membrane model and settings: a lab's records of
-    one wing share it (the FvK tensor takes ~0.3 s, a third of a 1 s record's estimation)."""
-    if kind == "fvk":
-        return FvKModal.build(model, modes, dt=dt, substeps=substeps, cubic_modes=cubic_modes)
-    return BergerModal.build(model, modes, dt=dt, substeps=substeps, stretch_gain=stretch_gain)
 
 
 def _fit(rp: RecordProblem, theta0: np.ndarray, s: RealisticSettings) -> Fit:
@@ -224,7 +175,7 @@ def realistic_identify(
         )
         # the alternative is fitted with few iterations first: it is finished only if it wins
         cap = s if i == 0 else s.replace(max_iter=min(s.max_iter, 12))
-        candidates[kind] = (rp, _fit(rp, _scan(rp, np.sign(p0)), cap))
+        candidates[kind] = (rp, _fit(rp, scan(rp, np.sign(p0)), cap))
     if len(candidates) == 2 and candidates["linear"][1].cost < candidates["nonlinear"][1].cost:
         rp, f = candidates["linear"]
         candidates["linear"] = (rp, _fit(rp, f.theta, s))
@@ -248,17 +199,36 @@ def realistic_identify(
         if s.load_model == "gust" or fit.cost - fit_g.cost > 2 * added:
             rp, fit, chosen = rg, fit_g, "gust"
             ad = assess(meas.t, _residual_matrix(rp, fit), fit.effective_parameters, s.segment_s)
+    res, fit = _finish(rp, fit, fits, chosen, ad, sigma, noise_source, t0, s, bubble_known, p0)
+    if s.frame == "auto" and s.edge_shapes == 0:
+        rf = dataclasses.replace(rp, shapes=frame_shapes(model, shapes, s, p0))
+        fit_f = _fit(rf, embed(rp, fit.theta, rf), s)
+        ad_f = assess(meas.t, _residual_matrix(rf, fit_f), fit_f.effective_parameters, s.segment_s)
+        res_f, fit_f = _finish(rf, fit_f, {chosen: fit_f}, chosen, ad_f, sigma, noise_source, t0, s, bubble_known, p0)
+        res = weigh(res, res_f, log_evidence(fit), log_evidence(fit_f), _frame_note)
+    res.info["membrane_selection"] = selection
+    res.wall_s = time.perf_counter() - t0
+    return res
+
+
+def _frame_note(w_interior: float, w_frame: float) -> str:
+    return (
+        f"the sensors do not tell whether the pressure reaches the frame (evidence: {w_interior:.0%} a load that "
+        f"vanishes there, {w_frame:.0%} one that acts up to it): the lift and its band mix the two"
+    )
+
+
+def _finish(rp, fit, fits, chosen, ad, sigma, noise_source, t0, s, bubble_known, p0):
+    """The prior check, the sign and the result of a fit, with the tension profile's band check."""
     rp, fit, spread, prior_info = load_prior_check(rp, fit, lambda r, th: _fit(r, th, s))
     if prior_info["conflict"]:
-        ad = assess(meas.t, _residual_matrix(rp, fit), fit.effective_parameters, s.segment_s)
-    c, amp = rp.load_history(fit.theta)
-    if not bubble_known and shapes.lift_row @ c * np.sign(p0) < 0:
+        ad = assess(rp.t, _residual_matrix(rp, fit), fit.effective_parameters, s.segment_s)
+    c, _ = rp.load_history(fit.theta)
+    if not bubble_known and rp.shapes.lift_row @ c * np.sign(p0) < 0:
         # Sign-blind sensors: state and load flip together; the prior load's sign decides.
         fit = dataclasses.replace(fit, theta=_flip(rp, fit.theta))
-        c, amp = rp.load_history(fit.theta)
     res = _result(rp, fit, fits, chosen, ad, sigma, noise_source, time.perf_counter() - t0, s, spread, prior_info)
-    res.info["membrane_selection"] = selection
-    return _with_tension_profile(res, rp, fit, ad, s)
+    return _with_tension_profile(res, rp, fit, ad, s), fit
 
 
 def _with_tension_profile(res: IdentificationResult, rp: RecordProblem, fit: Fit, ad, s) -> IdentificationResult:
@@ -358,6 +328,7 @@ def _result(rp, fit: Fit, fits, chosen, ad, sigma, noise_source, wall, s, spread
         "free_parameters": list(rp.prior.free),
         "prior": {"prestrain_rel": rp.prior.prestrain_rel, "damping_rel": rp.prior.damping_rel},
         "fits": {k: {"chi2": f.data_cost, "prior": f.prior_cost, "iterations": f.iterations} for k, f in fits.items()},
+        "log_evidence": float(-0.5 * fit.cost - 0.5 * np.linalg.slogdet(fit.precision)[1]),
         "adequacy": ad.as_dict(),
         "load_prior": prior_info,
         "model_adequate": ad.adequate,

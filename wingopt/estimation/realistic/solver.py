@@ -102,8 +102,8 @@ def levenberg_marquardt(problem, theta0: np.ndarray, max_iter: int = 40, tol: fl
             # its residuals (one tangent run instead of a trajectory and then a tangent)
             with np.errstate(over="ignore", invalid="ignore"):  # a diverging trial: a non-finite cost, rejected
                 trial = problem.residuals(theta + step, jacobian=jacobian_first)
-            rd1, rp1 = trial[0], trial[1]
-            f1 = float(rd1 @ rd1 + rp1 @ rp1)
+                rd1, rp1 = trial[0], trial[1]
+                f1 = float(rd1 @ rd1 + rp1 @ rp1)
             rho = (f - f1) / pred if np.isfinite(f1) and pred > 0 else -1.0
             if rho > 0:
                 log.debug(

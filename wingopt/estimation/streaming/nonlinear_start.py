@@ -20,6 +20,7 @@ import numpy as np
 
 from wingopt.estimation.realistic.record_problem import RecordProblem
 from wingopt.estimation.realistic.solver import levenberg_marquardt
+from wingopt.estimation.realistic.start import scan
 
 __all__ = ["batch_start", "TOLERANCE"]
 
@@ -29,20 +30,6 @@ TOLERANCE = 0.15
 START_DECREMENT = 0.1
 """Newton decrement at which the start-up solve stops: within ~0.3 posterior sigma of the optimum of
 the buffered samples, which every later sample's update refines (the batch stops at 0.01)."""
-
-
-def _scan(rp: RecordProblem) -> np.ndarray:
-    """The batch's start: the best amplitude along the smoothest shape, both signs (one batched run).
-
-    The same grid and cost as the realistic estimator's start-up scan (a private function there).
-    """
-    amps = np.array([0.1, 0.2, 0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 3.0])
-    amps = np.concatenate([amps, -amps])
-    th = np.zeros((amps.size, rp.dim))
-    th[:, rp.slices["c"].start] = amps
-    Q = rp.trajectory(th).real
-    cost = [float(np.sum(((rp.y - rp.model.outputs(Q[:, b])) / rp.sigma)[rp.valid] ** 2)) for b in range(amps.size)]
-    return th[int(np.argmin(np.array(cost) + amps**2))]
 
 
 def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> dict:
@@ -64,7 +51,7 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
     fit = levenberg_marquardt(rp, theta0, max_iter, START_DECREMENT)
     starts = 1
     if fit.data_cost > (1 + TOLERANCE) * rp.n_data:  # not a fit: the batch's start (amplitude scan) too
-        other = levenberg_marquardt(rp, _scan(rp), max_iter, START_DECREMENT)
+        other = levenberg_marquardt(rp, scan(rp, 1.0), max_iter, START_DECREMENT)
         starts = 2
         fit = other if other.cost < fit.cost else fit
     theta, Sigma = fit.theta, fit.covariance
