@@ -63,6 +63,9 @@ class IdentificationSettings:
     combination of the two far better than either: correlation near -1), ``damping = d`` with
     ``damping_std`` (1-sigma of the factor), and ``calibration`` (where they came from); they are
     then the prior.
+
+    ``leading_edge`` (``"x0"``: the flow meets the wing at ``x = 0``; ``"x1"``: at ``x = W``; unset:
+    unknown) tells the estimators of steady records which aerodynamic pressure to expect.
     """
 
     dt: float = 1.0e-3
@@ -78,6 +81,7 @@ class IdentificationSettings:
     damping_std: float | None = None
     prestrain_correlation: float = 0.0
     calibration: str = ""
+    leading_edge: str | None = None
 
 
 FREE_PARAMETERS = ("prestrain_x", "prestrain_y", "damping")
@@ -175,6 +179,7 @@ def from_table(root: Table, name: str) -> MembraneProblem:
     damping_std = ident.number("damping_std", None, positive=True)
     correlation = ident.number("prestrain_correlation", 0.0, lo=-0.999, hi=0.999)
     calibration = ident.string("calibration", "")
+    leading_edge = ident.string("leading_edge", None, choices=("x0", "x1")) if ident.has("leading_edge") else None
     noise = None
     if ident.has("noise_std"):
         if isinstance(ident.peek("noise_std"), list):
@@ -203,6 +208,7 @@ def from_table(root: Table, name: str) -> MembraneProblem:
             damping_std=damping_std,
             prestrain_correlation=correlation,
             calibration=calibration,
+            leading_edge=leading_edge,
         ),
         name=name,
         source=root.source,

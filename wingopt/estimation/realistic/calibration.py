@@ -41,6 +41,15 @@ log = logging.getLogger(__name__)
 SCAN_MODES = 4
 """Modes the start-up scan tries the unknown initial shape along (one at a time)."""
 
+SCAN_TENSION = (-1.5, 0.0, 1.5)
+"""Prestrain starts, in prior stds from its mean: a ringing record sampled below its frequencies
+(300 Hz) aliases, and the fit from one tension can end in another's local minimum."""
+
+SHORTLIST = 3
+"""Starts fitted briefly (``BRIEF`` iterations); the best is then fitted to convergence."""
+
+BRIEF = 12
+
 
 @dataclass(frozen=True)
 class Calibration:
@@ -71,14 +80,22 @@ class Calibration:
 
 
 def _starts(rp: RecordProblem, known: bool) -> list[np.ndarray]:
-    """Starting points: the prior mean with a known shape; else amplitudes along the lowest modes."""
-    if known:
-        return [np.zeros(rp.dim)]
+    """Starting points: the prior mean with a known shape, else amplitudes along the lowest modes;
+    each at a few prestrain levels."""
+    shapes = [np.zeros(rp.dim)]
+    if not known:
+        shapes = []
+        for j in range(min(SCAN_MODES, rp.state_modes)):
+            for a in (0.5, 1.0, 2.0):
+                th = np.zeros(rp.dim)
+                th[rp.slices["x0"].start + j] = a
+                shapes.append(th)
+    pars = [i for i, n in enumerate(rp.prior.free) if n.startswith("prestrain")]
     out = []
-    for j in range(min(SCAN_MODES, rp.state_modes)):
-        for a in (0.5, 1.0, 2.0):
-            th = np.zeros(rp.dim)
-            th[rp.slices["x0"].start + j] = a
+    for level in SCAN_TENSION:
+        for th in shapes:
+            th = th.copy()
+            th[[rp.slices["par"].start + i for i in pars]] = level
             out.append(th)
     return out
 
@@ -124,12 +141,16 @@ def calibrate(
         bm, LoadShapes.none(model), meas.t, meas.values, sigma, prior, x_mean, x_std, None, True,
         min(s.state_modes, bm.m),
     )  # fmt: skip
-    fits = []
+    scored = []
     for th in _starts(rp, known):
-        rd, rprior = rp.residuals(th)
-        fits.append((float(rd @ rd + rprior @ rprior), th))
-    start = min(fits, key=lambda f: f[0])[1]
-    fit = levenberg_marquardt(rp, start, s.max_iter)
+        with np.errstate(over="ignore", invalid="ignore"):
+            rd, rprior = rp.residuals(th)
+        cost = float(rd @ rd + rprior @ rprior)
+        scored.append((cost if np.isfinite(cost) else np.inf, th))
+    scored.sort(key=lambda f: f[0])
+    brief = [levenberg_marquardt(rp, th, BRIEF) for _, th in scored[:SHORTLIST]]
+    best = min(brief, key=lambda f: f.cost)
+    fit = levenberg_marquardt(rp, best.theta, 2 * s.max_iter)
     resid = np.full(rp.y.shape, np.nan)
     resid[rp.valid] = fit.residuals
     ad = assess(meas.t, resid, fit.effective_parameters, s.segment_s)

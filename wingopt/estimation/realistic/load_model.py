@@ -35,6 +35,12 @@ from wingopt.membrane import MembraneModel
 __all__ = ["LoadShapes", "GustAmplitude"]
 
 
+AERO_TERMS = ((0, 0), (1, 0), (0, 1))
+"""The aerodynamic shapes (chordwise term, spanwise term): the flat plate's and the camber's loads
+over a uniform span, and the flat plate's over a centred parabola: as many amplitudes as four
+sensors resolve."""
+
+
 @dataclass(frozen=True, eq=False)
 class LoadShapes:
     """The smoothest load shapes of a model's deflection basis and their prior.
@@ -122,6 +128,52 @@ class LoadShapes:
     def coefficients(self, c: np.ndarray) -> np.ndarray:
         """Load coefficients (in the load basis, :attr:`space`) of shape coefficients ``c`` (``(..., count)``)."""
         return np.asarray(c) @ self.shapes.T
+
+    @classmethod
+    def aerodynamic(
+        cls, model: MembraneModel, pressure: float = 200.0, leading_edge: str = "x0", kappa: float = 1.0
+    ) -> LoadShapes:
+        """Thin-airfoil pressure shapes that act up to the frame, with their leading edge at ``x = 0``
+        (``"x0"``) or ``x = W`` (``"x1"``).
+
+        Chordwise (``xi`` from the leading edge, ``theta`` its Glauert angle): the regularised
+        flat-plate term ``sqrt((1 - xi + d)/(xi + d))`` (``d = 0.05``: the leading edge's singularity
+        rounded off), the camber terms ``sin theta ~ sqrt(xi (1 - xi))`` and ``sin 2 theta``, and a
+        uniform pressure; spanwise (``eta = y / L``): uniform, a centred parabola and a linear tilt,
+        none of them zero on the frame. Their twelve products, L2-normalised, carry the prior std
+        ``kappa |P0| sqrt(A)`` for the uniform-span flat-plate and camber terms and half of it for the
+        rest: an aerodynamic load has its lift set by a few amplitudes, which four sensors resolve.
+        """
+        if leading_edge not in ("x0", "x1"):
+            raise InputError(f"leading_edge = {leading_edge!r}: expected 'x0' (x = 0) or 'x1' (x = W)")
+        free = build_load_space(model, "free", edge_weight=0.0)
+        W, L = model.problem.width, model.problem.height
+        d = 0.05
+
+        def chord(j):
+            def f(x, y):
+                xi = x / W if leading_edge == "x0" else 1.0 - x / W
+                s1 = np.sqrt(np.clip(xi * (1.0 - xi), 0.0, None))
+                return (np.sqrt((1 - xi + d) / (xi + d)), s1, s1 * (1 - 2 * xi), np.ones_like(xi))[j]
+
+            return f
+
+        def span(k):
+            def g(x, y):
+                eta = y / L
+                return (np.ones_like(eta), 4 * eta * (1 - eta) - 2.0 / 3.0, 2 * eta - 1)[k]
+
+            return g
+
+        vecs, std = [], []
+        for j, k in AERO_TERMS:
+            fj, gk = chord(j), span(k)
+            v = free.project(lambda x, y, fj=fj, gk=gk: fj(x, y) * gk(x, y))
+            vecs.append(v / free.l2_norm(v))
+            std.append(kappa * abs(pressure) * np.sqrt(W * L))
+        V = np.column_stack(vecs)
+        lift = V.T @ free.basis_integrals
+        return cls(V, np.zeros(V.shape[1]), np.array(std), lift, np.asarray(free.coupling @ V), free)
 
     def modal_forces(self, modes: np.ndarray) -> np.ndarray:
         """Modal force ``Phi^T p`` of each shape ``(count, m)`` for mode shapes ``Phi`` ``(n, m)``."""

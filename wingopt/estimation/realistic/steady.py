@@ -1,0 +1,229 @@
+"""The load of a steady record: a loaded membrane in steady flow (a wind tunnel), no transient.
+
+A tunnel record starts loaded (no release transient to identify the tension from) and fluctuates
+about a static state (buffeting). Its information on the steady load is the sensors' mean ``s̄``:
+four numbers. They are fitted with the static Föppl–von Kármán membrane (full order on the
+estimator's mesh: the modal model's cubic truncation is 2–3.5 % off in the static outputs of a
+strongly loaded wing), by Gauss–Newton on the chi-square
+
+    |(s̄ - s(z̄(c, e0))) / tau|^2 + |c|^2 + |e0 - e0_prior|^2_prior,    F(z̄; e0) = sum_k c_k p_k
+
+``tau^2 = var(s̄) + (MODEL_FORM s̄)^2``: the mean's own variance (batch means of the record: buffeting
+and noise) and a model-form term. The tension enters through the prestrains' prior: the problem
+file's (±20 %) or a calibration's (``wingopt calibrate``), so a record without one has its band set
+by that prior (and says so). The Jacobian is exact: ``K_t dz = dp - dR/de0`` with the FvK tangent.
+
+The sensors are quadratic and blind to the sign: a load and its negative, and a load and one with
+some lobes flipped, can fit equally. The fit starts from the prior sign's amplitude and from the
+first antisymmetric shape flipped; both load priors (zero on the frame; acting up to it,
+:mod:`.frame_check`) are fitted; the answers are weighed by their Laplace evidence: what the record
+cannot tell apart stays in the band.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from wingopt.errors import InputError
+from wingopt.estimation.realistic.load_model import LoadShapes
+from wingopt.estimation.realistic.record_problem import ParameterPrior
+from wingopt.estimation.realistic.solver import Fit, levenberg_marquardt
+from wingopt.membrane.full import FvKMembrane
+from wingopt.membrane.model import MembraneModel
+from wingopt.membrane.parameters import MembraneParameters
+
+__all__ = ["SteadyData", "SteadyProblem", "steady_data", "MODEL_FORM", "BATCHES"]
+
+log = logging.getLogger(__name__)
+
+MODEL_FORM = 0.01
+"""Relative model-form std of the static sensor outputs (the estimator's mesh and the sensor model
+against the truth's; measured 25x13 against 49x25 on the tunnel load: below 0.5 %)."""
+
+BATCHES = 20
+"""Batches of the record whose means give the variance of the mean (buffeting is correlated over a
+few ms; 20 batches of a 1.5 s record are 75 ms long)."""
+
+
+@dataclass(frozen=True)
+class SteadyData:
+    """The mean sensor outputs of a steady record and their standard error."""
+
+    mean: np.ndarray
+    std_error: np.ndarray
+    fluctuation: np.ndarray
+    samples: int
+
+
+def steady_data(values: np.ndarray) -> SteadyData:
+    """Mean, its standard error (batch means) and the RMS fluctuation of each sensor (NaN skipped)."""
+    y = np.asarray(values, dtype=float)
+    mean = np.nanmean(y, axis=0)
+    n = np.sum(np.isfinite(y), axis=0)
+    nb = max(2, min(BATCHES, int(n.min()) // 5))
+    batches = np.array_split(y, nb)
+    means = np.array([np.nanmean(b, axis=0) for b in batches])
+    se = np.nanstd(means, axis=0, ddof=1) / np.sqrt(nb)
+    return SteadyData(mean, se, np.nanstd(y, axis=0), int(n.min()))
+
+
+@dataclass(eq=False)
+class SteadyProblem:
+    """The static least-squares problem of a steady record (interface of :func:`levenberg_marquardt`).
+
+    Unknowns (scaled: every prior is ``N(0, 1)``): the load-shape coefficients ``c`` and the free
+    prestrains.
+    """
+
+    model: MembraneModel
+    shapes: LoadShapes
+    data: SteadyData
+    prior: ParameterPrior
+    model_form: float = MODEL_FORM
+    _z: np.ndarray | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        self.pars = tuple(n for n in self.prior.free if n.startswith("prestrain"))
+
+    @cached_property
+    def fvk(self) -> FvKMembrane:
+        return FvKMembrane.from_model(self.model)
+
+    @property
+    def dim(self) -> int:
+        return self.shapes.count + len(self.pars)
+
+    @cached_property
+    def tau(self) -> np.ndarray:
+        d = self.data
+        return np.sqrt(d.std_error**2 + (self.model_form * np.abs(d.mean)) ** 2)
+
+    @cached_property
+    def prior_matrix(self) -> np.ndarray:
+        R = np.eye(self.dim)
+        r = self.prior.correlation
+        if r and len(self.pars) == 2:
+            L = np.linalg.cholesky(np.array([[1.0, r], [r, 1.0]]))
+            i = self.shapes.count
+            R[i:, i:] = np.linalg.inv(L)
+        return R
+
+    def physical(self, theta: np.ndarray) -> tuple[np.ndarray, MembraneParameters]:
+        """Shape coefficients ``c`` and the membrane parameters of ``theta``."""
+        k = self.shapes.count
+        c = self.shapes.prior_std * theta[:k]
+        e = {}
+        for i, name in enumerate(self.pars):
+            m, s = self.prior.mean_std(name)
+            e[name] = m + s * theta[k + i]
+        ex = e.get("prestrain_x", self.prior.mean_std("prestrain_x")[0])
+        ey = e.get("prestrain_y", self.prior.mean_std("prestrain_y")[0])
+        if min(ex, ey) <= 0:
+            raise InputError(f"prestrain ({ex:.3g}, {ey:.3g}): the fit left the physical range")
+        return c, MembraneParameters(ex, ey)
+
+    def equilibrium(self, theta: np.ndarray):
+        c, par = self.physical(theta)
+        fvk = self.fvk.with_params(par)
+        sol = fvk.static(self.shapes.forces @ c, z0=self._z)
+        self._z = sol.z
+        return fvk, sol
+
+    def residuals(self, theta: np.ndarray, jacobian: bool = False):
+        theta = np.asarray(theta, dtype=float)
+        try:
+            fvk, sol = self.equilibrium(theta)
+        except (InputError, ArithmeticError) as exc:  # a trial step outside the physical range: rejected
+            log.debug("steady trial rejected: %s", exc)
+            rd = np.full(self.data.mean.size, np.inf)
+            return (rd, self.prior_matrix @ theta) if not jacobian else (rd, self.prior_matrix @ theta, None, None)
+        Cs = self.model.sensors.matrices
+        z = sol.z
+        s = np.array([z @ (C @ z) for C in Cs])
+        rd = (self.data.mean - s) / self.tau
+        rp = self.prior_matrix @ theta
+        if not jacobian:
+            return rd, rp
+        dz = self._dz(fvk, sol, theta)
+        J = -2.0 * np.stack([(C @ z) @ dz for C in Cs]) / self.tau[:, None]
+        return rd, rp, J, self.prior_matrix
+
+    def _dz(self, fvk: FvKMembrane, sol, theta: np.ndarray) -> np.ndarray:
+        """``dz/dtheta`` ``(n, dim)`` by the implicit function theorem on ``(w, u, v)``."""
+        n, k = fvk.n, self.shapes.count
+        K = fvk.tangent(sol.z, sol.u, sol.v).tocsc()
+        rhs = np.zeros((3 * n, self.dim))
+        rhs[:n, :k] = self.shapes.forces * self.shapes.prior_std[None, :]
+        C, nu = fvk.C, fvk.nu
+        gz, hz = fvk.gx @ sol.z, fvk.gy @ sol.z
+        for i, name in enumerate(self.pars):
+            std = self.prior.mean_std(name)[1]
+            d = C * (gz + nu * hz) if name == "prestrain_x" else C * (nu * gz + hz)
+            rhs[:n, k + i] = -std * d  # dR_w/de0 (the in-plane residuals do not depend on e0)
+        return spla.splu(K).solve(rhs)[:n]
+
+    def lift(self, theta: np.ndarray) -> float:
+        c, _ = self.physical(theta)
+        return float(self.shapes.lift_row @ c)
+
+    def lift_gradient(self) -> np.ndarray:
+        g = np.zeros(self.dim)
+        g[: self.shapes.count] = self.shapes.lift_row * self.shapes.prior_std
+        return g
+
+
+def fit_steady(sp_: SteadyProblem, starts: list[np.ndarray], max_iter: int = 30) -> Fit:
+    """The best of Levenberg–Marquardt runs from ``starts`` (by cost)."""
+    best = None
+    for th in starts:
+        sp_._z = None
+        try:
+            f = levenberg_marquardt(sp_, th, max_iter)
+        except (InputError, ArithmeticError, sp.linalg.MatrixRankWarning) as exc:  # pragma: no cover
+            log.debug("steady start failed: %s", exc)
+            continue
+        if best is None or f.cost < best.cost:
+            best = f
+    if best is None:
+        raise InputError("steady record: no start of the static fit converged; check the data's units")
+    return best
+
+
+def _antisymmetric(sp_: SteadyProblem) -> int | None:
+    """Index of the first load shape that is antisymmetric in x (the other lobe pattern's direction)."""
+    W, L = sp_.model.problem.width, sp_.model.problem.height
+    x = np.linspace(0.05 * W, 0.95 * W, 9)
+    y = np.full_like(x, 0.5 * L)
+    space = sp_.shapes.space.space if sp_.shapes.space is not None else sp_.model.space
+    for j in range(sp_.shapes.count):
+        f = space.evaluate(sp_.shapes.shapes[:, j], x, y)
+        if np.abs(f + f[::-1]).max() < 1e-6 * np.abs(f).max():
+            return j
+    return None
+
+
+def starts(sp_: SteadyProblem, sign: float) -> list[np.ndarray]:
+    """Starts along the smoothest shape (the prior's sign) and along the first x-antisymmetric one,
+    each scaled so that the sensors' mean is matched to first order (they are quadratic in the load)."""
+    out = []
+    for j in (0, _antisymmetric(sp_)):
+        if j is None:
+            continue
+        th = np.zeros(sp_.dim)
+        th[j] = sign * 0.5
+        rd, _ = sp_.residuals(th)
+        s_model = sp_.data.mean - rd * sp_.tau
+        th[j] *= np.sqrt(max(np.nansum(sp_.data.mean), 1e-30) / max(np.nansum(s_model), 1e-30))
+        out.append(th)
+    return out
+
+
+def evidence(fit: Fit) -> float:
+    """Laplace log-evidence (up to the data's normalisation)."""
+    return float(-0.5 * fit.cost - 0.5 * np.linalg.slogdet(fit.precision)[1])
