@@ -50,6 +50,22 @@ class PointOperators:
     def shape(self) -> tuple[int, int]:
         return self.space.shape
 
+    def gradients(self, coefs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`gradient` of many fields at once: ``coefs`` ``(n, k)`` -> two ``(k, n_points)``."""
+        nx, ny = self.shape
+        Z = coefs.reshape(nx, ny, -1)
+        gx = np.einsum("pa,abk,qb->kpq", self.x[1], Z, self.y[0], optimize=True)
+        gy = np.einsum("pa,abk,qb->kpq", self.x[0], Z, self.y[1], optimize=True)
+        return gx.reshape(gx.shape[0], -1), gy.reshape(gy.shape[0], -1)
+
+    def divergences(self, ax: np.ndarray, ay: np.ndarray) -> np.ndarray:
+        """:meth:`divergence` of many point data at once: ``ax, ay`` ``(k, n_points)`` -> ``(n, k)``."""
+        nq = (self.x[0].shape[0], self.y[0].shape[0])
+        AX, AY = ax.reshape(-1, *nq), ay.reshape(-1, *nq)
+        out = np.einsum("pa,kpq,qb->abk", self.x[1], AX, self.y[0], optimize=True)
+        out += np.einsum("pa,kpq,qb->abk", self.x[0], AY, self.y[1], optimize=True)
+        return out.reshape(-1, out.shape[-1])
+
     def gradient(self, coef: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(f_x, f_y)`` at all points of the field with coefficients ``coef``."""
         Z = coef.reshape(self.shape)

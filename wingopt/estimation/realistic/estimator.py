@@ -34,6 +34,7 @@ from wingopt.estimation.realistic.prior_check import load_prior_check
 from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior, RecordProblem
 from wingopt.estimation.realistic.solver import Fit, levenberg_marquardt
 from wingopt.estimation.realistic.start import initial_state_prior, modal_model, scan
+from wingopt.estimation.realistic.steady_estimator import is_steady, steady_identify
 from wingopt.estimation.realistic.tension_profile import tension_profile
 from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements.series import Measurements
@@ -63,6 +64,10 @@ class RealisticSettings:
         Load shapes (smoothest of ``Lam``, zero on the frame).
     edge_shapes : int
         Free-edge load shapes more (:class:`~.load_model.LoadShapes`): loads that act up to the frame.
+    record : {"auto", "transient", "steady"}
+        ``steady``: a loaded wing in steady flow, no transient: the sensors' mean is fitted with the
+        static membrane (:mod:`.steady_estimator`); ``transient``: the whole time series; ``auto``:
+        ``steady`` when the record has no transient (:func:`~.steady_estimator.is_steady`).
     frame : {"auto", "off"}
         ``auto``: also fit the prior whose load acts up to the frame and weigh the two by their
         evidence (:mod:`.frame_check`); ``off``: the shapes as given.
@@ -99,6 +104,7 @@ class RealisticSettings:
     shapes: int = 15
     edge_shapes: int = 0
     frame: str = "auto"
+    record: str = "auto"
     membrane: str = "auto"
     free: tuple[str, ...] | None = None
     prestrain_rel: float | None = None
@@ -118,6 +124,8 @@ class RealisticSettings:
             raise InputError(f"membrane_model = {self.membrane_model!r}: expected one of {', '.join(MEMBRANE_MODELS)}")
         if self.membrane not in ("auto", "nonlinear", "linear"):
             raise InputError(f"membrane = {self.membrane!r}: expected auto, nonlinear or linear")
+        if self.record not in ("auto", "transient", "steady"):
+            raise InputError(f"record = {self.record!r}: expected auto, transient or steady")
         if self.frame not in ("auto", "off"):
             raise InputError(f"frame = {self.frame!r}: expected auto or off")
         if self.load_model not in LOAD_MODELS:
@@ -140,9 +148,11 @@ def realistic_identify(
     """Identify load, initial state and model parameters of one record with the modal Berger or
     cubic FvK model (``settings.membrane_model``)."""
     s = settings or RealisticSettings()
+    meas = measurements
+    if s.record == "steady" or (s.record == "auto" and s.membrane_model == "fvk" and is_steady(meas.values)):
+        return steady_identify(model, meas, s, initial_load)
     t0 = time.perf_counter()
     problem = model.problem
-    meas = measurements
     sigma, noise_source = resolve_noise_std(
         meas.values, meas.sensor_names, None, meas.noise_std, problem.identification.noise_std
     )

@@ -17,7 +17,6 @@ import time
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from wingopt.estimation.realistic.frame_check import FRAME_SHAPES
 from wingopt.estimation.realistic.load_model import LoadShapes
 from wingopt.estimation.realistic.record_problem import ParameterPrior
 from wingopt.estimation.realistic.steady import SteadyProblem, evidence, fit_steady, starts, steady_data
@@ -90,8 +89,7 @@ def steady_identify(
     prior = ParameterPrior.from_problem(problem, s.free, s.prestrain_rel, s.damping_rel)
     data = steady_data(meas.values)
     priors = [("interior", LoadShapes.build(model, s.shapes, p0, s.kappa, s.prior_power))]
-    if s.frame == "auto":
-        priors.append(("frame", LoadShapes.build(model, s.shapes, p0, s.kappa, s.prior_power, FRAME_SHAPES)))
+    if s.frame == "auto":  # a pressure that acts up to the frame: the aerodynamic shapes of either leading edge
         edges = (problem.identification.leading_edge,) if problem.identification.leading_edge else ("x0", "x1")
         priors += [(f"aerodynamic {le}", LoadShapes.aerodynamic(model, p0, le, s.kappa)) for le in edges]
     found = []

@@ -34,22 +34,24 @@ def cubic_tensor(fvk: FvKMembrane, shapes: np.ndarray) -> np.ndarray:
     ex = 0.5 * gx[:, None, :] * gx[None, :, :]
     ey = 0.5 * gy[:, None, :] * gy[None, :, :]
     gg = 0.5 * (gx[:, None, :] * gy[None, :, :] + gy[:, None, :] * gx[None, :, :])
-    S = np.empty((3, r, r, W.size))
-    for j in range(r):
-        for k in range(j, r):
-            nx, ny, nxy = C * (ex[j, k] + nu * ey[j, k]), C * (ey[j, k] + nu * ex[j, k]), G * gg[j, k]
-            rhs = np.concatenate([o.divergence(W * nx, W * nxy), o.divergence(W * nxy, W * ny)])
-            uv = -lu.solve(rhs)
-            ux, uy = o.gradient(uv[:n])
-            vx, vy = o.gradient(uv[n:])
-            exj, eyj, gj = ex[j, k] + ux, ey[j, k] + vy, gg[j, k] + uy + vx
-            S[:, j, k] = S[:, k, j] = (C * (exj + nu * eyj), C * (eyj + nu * exj), G * gj)
-    # B[j, k, i, l] = ∫ Sx_jk phi_i,x phi_l,x + Sy_jk phi_i,y phi_l,y + Sxy_jk (phi_i,x phi_l,y + phi_i,y phi_l,x)
-    Sw = S.reshape(3, r * r, -1) * W
-    B = Sw[0] @ np.einsum("iq,lq->qil", gx, gx).reshape(W.size, r * r)
-    B += Sw[1] @ np.einsum("iq,lq->qil", gy, gy).reshape(W.size, r * r)
-    B += Sw[2] @ (np.einsum("iq,lq->qil", gx, gy) + np.einsum("iq,lq->qil", gy, gx)).reshape(W.size, r * r)
-    B = B.reshape(r, r, r, r).transpose(2, 0, 1, 3)  # (i, j, k, l)
+    # All pairs j <= k at once: their in-plane problems share the factorised stiffness.
+    J, K = np.triu_indices(r)
+    exp, eyp, ggp = ex[J, K], ey[J, K], gg[J, K]
+    nx, ny, nxy = C * (exp + nu * eyp), C * (eyp + nu * exp), G * ggp
+    rhs = np.vstack([o.divergences(W * nx, W * nxy), o.divergences(W * nxy, W * ny)])
+    uv = -lu.solve(rhs)
+    ux, uy = o.gradients(uv[:n])
+    vx, vy = o.gradients(uv[n:])
+    exj, eyj, gj = exp + ux, eyp + vy, ggp + uy + vx
+    # B[j, k, i, l] = ∫ Sx_jk phi_i,x phi_l,x + Sy_jk phi_i,y phi_l,y + Sxy_jk (phi_i,x phi_l,y + phi_i,y phi_l,x),
+    # symmetric in (j, k) and in (i, l): contracted over the pairs only (a quarter of the products).
+    Sp = np.stack([C * (exj + nu * eyj), C * (eyj + nu * exj), G * gj]) * W  # (3, P, nq)
+    Gx, Gy = gx[J] * gx[K], gy[J] * gy[K]
+    Gxy = gx[J] * gy[K] + gy[J] * gx[K]
+    Bp = Sp[0] @ Gx.T + Sp[1] @ Gy.T + Sp[2] @ Gxy.T  # (P, P): [pair (j, k), pair (i, l)]
+    pair = np.empty((r, r), dtype=int)
+    pair[J, K] = pair[K, J] = np.arange(J.size)
+    B = Bp[pair[:, :, None, None], pair[None, None, :, :]].transpose(2, 0, 1, 3)  # (i, j, k, l)
     perms = ((1, 2, 3), (1, 3, 2), (2, 1, 3), (2, 3, 1), (3, 1, 2), (3, 2, 1))
     B = sum(B.transpose((0,) + p) for p in perms) / 6.0
     return B.reshape(r, r**3)

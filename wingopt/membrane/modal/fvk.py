@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wingopt.errors import InputError
+from wingopt.errors import InputError, SolverError
 from wingopt.membrane.full.fvk import FvKMembrane
 from wingopt.membrane.modal.base import ModalMembrane
 from wingopt.membrane.modal.cubic import cubic_tensor
@@ -118,6 +118,52 @@ class FvKModal(ModalMembrane):
             F[:r] += S @ a
             J[:r, :r] += 3.0 * S
         return F, J
+
+    def equilibrium(self, u, params=None, nonlinear: bool = True) -> np.ndarray:
+        """Static modal displacements under the modal force ``u``: the modes beyond the cubic ones are
+        linear and uncoupled (``q_j = u_j / k0_j``); Newton (halving steps) on the cubic ones only."""
+        par = self.nominal if params is None else params
+        u = np.asarray(u, dtype=float)
+        k0 = self.omega(par.eps0_x, par.eps0_y) ** 2
+        q = u / k0
+        r = self.cubic_modes if nonlinear else 0
+        if not r:
+            return q
+        a, ua, ka, T = q[:r].copy(), u[:r], k0[:r], self.tensor
+        scale = max(np.linalg.norm(ua), 1e-300)
+
+        def residual(a):
+            S = ((a[:, None] * a[None, :]).ravel() @ T).reshape(r, r)
+            return ka * a + S @ a - ua, S
+
+        res, S = residual(a)
+        for _ in range(100):
+            norm = np.linalg.norm(res)
+            if norm <= 1e-12 * scale:
+                q[:r] = a
+                return q
+            step = -np.linalg.solve(np.diag(ka) + 3.0 * S, res)
+            t = 1.0
+            while t > 1e-6:
+                trial, St = residual(a + t * step)
+                if np.linalg.norm(trial) < norm:
+                    break
+                t *= 0.5
+            a, res, S = a + t * step, trial, St
+        raise SolverError(
+            "FvKModal static solve", f"residual {np.linalg.norm(res) / scale:.1e} after 100 steps", "reduce the load"
+        )
+
+    def solve_tangent(self, q, params, rhs: np.ndarray) -> np.ndarray:
+        """``F_q^-1 rhs`` at the static state ``q``: the cubic block's dense solve, the rest diagonal."""
+        par = self.nominal if params is None else params
+        k0 = self.omega(par.eps0_x, par.eps0_y) ** 2
+        r = self.cubic_modes
+        a = q[:r]
+        S = ((a[:, None] * a[None, :]).ravel() @ self.tensor).reshape(r, r)
+        out = rhs / (k0[:, None] if rhs.ndim == 2 else k0)
+        out[:r] = np.linalg.solve(np.diag(k0[:r]) + 3.0 * S, rhs[:r])
+        return out
 
     # -- dynamics --------------------------------------------------------------------------
     def simulate(self, q0, v0, forces, ex, ey, damping=1.0, nonlinear: bool = True):
