@@ -10,6 +10,7 @@ Prints final load / deflection / lift errors (mean and spread over seeds), the l
 filter's seconds per sample against the 1 ms sample period. Takes tens of minutes on 2 cores::
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_jekf.py --seeds 0,1,2 --out jekf_bench.json
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_jekf.py --quick   # smoke run, ~10 s
 
 Timings are wall-clock on whatever else the machine is doing; run it on a quiet machine (one BLAS
 thread per process is faster for these small products than a contended pool).
@@ -18,7 +19,6 @@ thread per process is faster for these small products than a contended pool).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import sys
@@ -30,9 +30,9 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from wingopt.estimation.jekf import JEKFSettings, JointEKF  # noqa: E402
-from wingopt.estimation.jekf.tuning import cached_seed_lambda, select_lambda  # noqa: E402
-from wingopt.measurements import Measurements  # noqa: E402
-from wingopt.membrane import MembraneModel, add_noise  # noqa: E402
+from wingopt.estimation.jekf.presets import cached_seed_lambda  # noqa: E402
+from wingopt.estimation.jekf.tuning import select_lambda  # noqa: E402
+from wingopt.membrane import MembraneModel  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
 from wingopt.workflows.protocols import simulate_case  # noqa: E402
 
@@ -41,16 +41,9 @@ SEED_TABLE = {"L1": (1.343e-4, 0.2166), "L2": (0.1282, 0.1012), "L3": (0.05672, 
 
 
 def noisy(clean, noise: float, seed: int):
-    """The protocol case with noise (identical to ``simulate_case(problem, load, noise, seed)``)."""
-    values, sigma = add_noise(clean.trajectory.outputs, noise, seed)
-    meas = Measurements(
-        t=clean.trajectory.t,
-        values=values,
-        sensor_names=clean.measurements.sensor_names,
-        noise_std=sigma,
-        source=f"simulated {clean.load.name} {100 * noise:g}% seed {seed}",
-    )
-    return dataclasses.replace(clean, measurements=meas, noise_fraction=noise, seed=seed)
+    """The protocol case with noise (identical to ``simulate_case(problem, load, noise, seed)``: the
+    measurements carry the simulated noise std)."""
+    return clean.with_noise(noise, seed, tell=True)
 
 
 def errors(case, model, result) -> dict[str, float]:
@@ -78,7 +71,13 @@ def main(argv=None) -> int:
     ap.add_argument("--out", help="write all records as JSON here")
     ap.add_argument("--report", nargs="+", metavar="JSON", help="only print the table of earlier --out files")
     ap.add_argument("--timing", action="store_true", help="only time the filter per sample (modal, reduced, dense)")
+    ap.add_argument(
+        "--quick", action="store_true", help="smoke run: L1, 1 %%, seed 0, 40 modes, 8 seed-method runs (~10 s)"
+    )
     args = ap.parse_args(argv)
+    if args.quick:
+        args.loads, args.noises, args.seeds, args.seed_maxfev = "L1", "1", "0", 8
+        args.modes = 40 if args.modes is None else args.modes
     if args.timing:
         timing(load_problem(args.problem))
         return 0
