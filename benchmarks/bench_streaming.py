@@ -6,10 +6,11 @@ Streams the protocol's L1 record (truth 49x25, estimator 25x13, 1 % noise, 1 s a
 sample through :class:`~wingopt.estimation.streaming.StreamingEstimator`, then continues with
 ``--seconds`` of steady data (the record's final noise-free outputs plus noise of the same level:
 the membrane is in equilibrium after ~1 s). ``--model nonlinear``: the same with the Berger truth
-(:func:`~wingopt.workflows.realistic_truth.berger_case`: 49x25, 120 modes, 8 sub-steps, L1, 1 %)
-through :class:`~wingopt.estimation.streaming.nonlinear.NonlinearStreamingEstimator`, against the
-batch realistic estimator (:func:`~wingopt.estimation.realistic.realistic_identify`, defaults).
-``--model fvk``: the FvK truth (:func:`~wingopt.workflows.realistic_truth.fvk_case`, 49x25, L1, 1 %)
+(:func:`~wingopt.workflows.protocols.simulate_case` with ``truth="berger"``: the full-order Berger
+membrane on 49x25, 8 sub-steps, L1, 1 %; before the model-layer refactor a 120-mode modal Berger
+truth) through :class:`~wingopt.estimation.streaming.nonlinear.NonlinearStreamingEstimator`, against
+the batch realistic estimator (:func:`~wingopt.estimation.realistic.realistic_identify`, defaults).
+``--model fvk``: the FvK truth (``simulate_case(..., truth="fvk")``, 49x25, 2 sub-steps, L1, 1 %)
 through the FvK stream (``NonlinearStreamSettings(membrane_model="fvk")``, the ``--follow`` default),
 against the batch FvK estimator.
 Prints, in one run:
@@ -26,6 +27,7 @@ Usage::
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 nice python benchmarks/bench_streaming.py --seconds 3600
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 nice python benchmarks/bench_streaming.py --model nonlinear --seconds 120
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 nice python benchmarks/bench_streaming.py --model fvk --seconds 600
+    OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 nice python benchmarks/bench_streaming.py --seconds 1   # quickest
 
 One thread, one process; on a shared machine the wall time includes preemption (the load average
 is printed with the numbers).
@@ -52,7 +54,6 @@ from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator, 
 from wingopt.membrane import MembraneModel  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
 from wingopt.workflows.protocols import simulate_case  # noqa: E402
-from wingopt.workflows.realistic_truth import berger_case, fvk_case  # noqa: E402
 
 
 def rss_mb() -> float:
@@ -88,9 +89,9 @@ def main() -> None:
     nonlinear = args.model in ("nonlinear", "fvk")
     mm = "fvk" if args.model == "fvk" else "berger"
     if args.model == "fvk":
-        case = fvk_case(problem, args.load, 0.01, args.seed, t_end=1.0)
+        case = simulate_case(problem, args.load, 0.01, args.seed, (49, 25), t_end=1.0, truth="fvk", substeps=2)
     elif nonlinear:
-        case = berger_case(problem, args.load, 0.01, args.seed, t_end=1.0)
+        case = simulate_case(problem, args.load, 0.01, args.seed, (49, 25), t_end=1.0, truth="berger", substeps=8)
     else:
         case = simulate_case(problem, args.load, 0.01, args.seed, (49, 25), t_end=1.0)
     meas = dataclasses.replace(case.measurements, noise_std=None)  # the estimators are not told the noise

@@ -16,9 +16,14 @@ run it (the Dask sweep engine of ``wingopt.workflows.sweep`` when merged; here a
     nice python benchmarks/mismatch_study.py --loads L1,LE --truths berger --prestrain 0.8,1.2 \\
         --damping 2 --noise 0.01 --seeds 0 --estimators realistic,mhe --out runs/m.jsonl
 
-Truth: Berger membrane on 49x25 with 120 modes and 8 sub-steps per sample
-(:func:`wingopt.workflows.realistic_truth.berger_case`), or the same modal code with the stretch
-off (linear). Results append to a JSON-lines file (one task per line; rerunning skips done tasks).
+Truth: the full-order Berger membrane on 49x25 with 8 sub-steps per sample, or the same operators
+with the stretch left out (linear), both by :func:`wingopt.workflows.protocols.simulate_case`
+(before the model-layer refactor the truth was a 120-mode modal Berger model, the retired
+``berger_case``). Results append to a JSON-lines file (one task per line; rerunning skips done
+tasks). Quickest run (one task)::
+
+    nice python benchmarks/mismatch_study.py --loads L1 --truths linear --prestrain 1 --damping 2 \\
+        --noise 0.01 --seeds 0 --estimators mhe --out /tmp/mismatch_quick.jsonl
 """
 
 from __future__ import annotations
@@ -38,12 +43,18 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from wingopt.estimation.realistic.mhe_check import check_mhe_result  # noqa: E402
-from wingopt.membrane import MembraneModel, add_noise  # noqa: E402
+from wingopt.membrane import Gust, MembraneModel, add_noise  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
-from wingopt.workflows.realistic_truth import ISSUE_GUST, berger_case  # noqa: E402
+from wingopt.workflows.protocols import simulate_case  # noqa: E402
 from wingopt.workflows.studies import load_field, run_method  # noqa: E402
 
 ESTIMATORS = ("realistic", "mhe", "jekf-tuned")
+
+ISSUE_GUST = Gust(start=0.4, duration=0.2, amplitude=0.3)
+"""The gust of the study: 1-cos, +60 % over 0.2 s, starting at 0.4 s (after the bubble's transient)."""
+
+TRUTH_SUBSTEPS = 8
+"""Integration sub-steps per sample of the truth (as the retired ``berger_case``)."""
 
 
 def tasks(loads, truths, prestrain, damping, noise, seeds, estimators) -> list[dict]:
@@ -86,7 +97,10 @@ def _clean(load: str, truth: str, pf: float, damping: float):
     e0 = problem.material.prestrain
     gust = ISSUE_GUST if load.endswith("+gust") else None
     name = load.split("+")[0]
-    return berger_case(problem, name, 0.0, None, (pf * e0, (2.0 - pf) * e0), damping, gust, nonlinear=truth == "berger")
+    return simulate_case(
+        problem, name, 0.0, None, truth="berger" if truth == "berger" else "linear",
+        prestrain=(pf * e0, (2.0 - pf) * e0), damping=damping, gust=gust, substeps=TRUTH_SUBSTEPS, tell_noise=False,
+    )  # fmt: skip
 
 
 @functools.lru_cache(maxsize=1)

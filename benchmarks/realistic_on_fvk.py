@@ -1,6 +1,6 @@
 """The realistic estimator and the linear MHE on Föppl–von Kármán truth records (issue 11).
 
-Truth: FvK membrane on 49x25 (:func:`wingopt.workflows.records.simulate_record`, ``truth="fvk"``;
+Truth: FvK membrane on 49x25 (:func:`wingopt.workflows.protocols.simulate_case`, ``truth="fvk"``;
 ``--truth linear`` for the linear-truth reference), the seed's protocol (1 cm bubble at rest, 1 s
 at 1 kHz, the four default sensors), noise as given. Estimators on the problem's 25x13 mesh:
 ``realistic`` (``--membrane-model fvk``: the cubic modal FvK model, or ``berger``) and ``mhe``
@@ -14,6 +14,7 @@ band, coverage, adequacy, identified parameters (and their relative error), gust
     nice python benchmarks/realistic_on_fvk.py L1 --prestrain 0.8,1.2 --damping 2 --membrane-model fvk
     nice python benchmarks/realistic_on_fvk.py L1+gust --membrane-model fvk
     nice python benchmarks/realistic_on_fvk.py L1 --seeds 0-20 --membrane-model fvk   # band coverage
+    nice python benchmarks/realistic_on_fvk.py L1 --estimators mhe   # quickest (FvK truth, linear MHE)
 
 ``--prestrain f``: truth prestrains ``(f e0, (2 - f) e0)`` (unequal); ``--damping d``: both damping
 terms x d; ``L1+gust``: 1-cos, +60 % over 0.2 s from 0.4 s on L1.
@@ -35,14 +36,13 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify  # noqa: E402
-from wingopt.membrane.modal.berger import BergerModal  # noqa: E402
 from wingopt.estimation.realistic.mhe_check import check_mhe_result  # noqa: E402
+from wingopt.estimation.runners import model_form_band  # noqa: E402
 from wingopt.fe import integrate  # noqa: E402
-from wingopt.membrane import MembraneModel, add_noise  # noqa: E402
+from wingopt.membrane import Gust, MembraneModel, add_noise  # noqa: E402
+from wingopt.membrane.modal.berger import BergerModal  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
-from wingopt.workflows.identify import model_form_band  # noqa: E402
-from wingopt.workflows.protocols import relative_l2  # noqa: E402
-from wingopt.workflows.records import Gust, simulate_record  # noqa: E402
+from wingopt.workflows.protocols import simulate_case  # noqa: E402
 from wingopt.workflows.studies import load_field, run_method  # noqa: E402
 
 GUST = Gust(start=0.4, duration=0.2, amplitude=0.3)
@@ -55,15 +55,19 @@ def _clean(load: str, truth: str, pf: float, damping: float):
     problem = load_problem("membrane")
     e0 = problem.material.prestrain
     gust = GUST if load.endswith("+gust") else None
-    rec = simulate_record(
+    rec = simulate_case(
         problem,
         load.split("+")[0],
+        0.0,
+        None,
         truth=truth,
         prestrain=(pf * e0, (2.0 - pf if SPLIT["unequal"] else pf) * e0),
-        damping_scale=damping,
+        damping=damping,
         gust=gust,
+        tell_noise=False,
     )
-    absl = integrate(rec.model.space, lambda x, y, p=rec.load: np.abs(p(x, y)), order=8)
+    # ∫|P| of the load shape (without the gust factor), on the truth's mesh
+    absl = integrate(rec.truth_model.space, lambda x, y, p=rec.shape: np.abs(p(x, y)), order=8)
     return rec, absl
 
 
@@ -74,8 +78,8 @@ def _first_mode(model):
 
 def run(load, truth, pf, damping, noise, seed, estimator, settings, model) -> dict:
     rec, absl = _clean(load, truth, pf, damping)
-    noisy, _ = add_noise(rec.outputs, noise, seed)
-    meas = dataclasses.replace(rec.to_measurements(), values=noisy, noise_std=None)
+    noisy, _ = add_noise(rec.trajectory.outputs, noise, seed)
+    meas = dataclasses.replace(rec.measurements, values=noisy, noise_std=None)
     c0 = time.process_time()
     if estimator == "realistic":
         res = realistic_identify(model, meas, settings)
@@ -86,7 +90,8 @@ def run(load, truth, pf, damping, noise, seed, estimator, settings, model) -> di
     else:  # jekf-tuned: the dissertation's filter, lambda from the data (jekf-seed needs the truth)
         res = run_method(estimator, model, meas)
     cpu = time.process_time() - c0
-    lt = float(rec.lift[-1])
+    lift = rec.lift_history  # the true lift at every sample (gust included)
+    lt = float(lift[-1])
     out = {
         "truth": f"{truth} 49x25",
         "load": load,
@@ -100,7 +105,7 @@ def run(load, truth, pf, damping, noise, seed, estimator, settings, model) -> di
         "lift_true": lt,
         "lift_std": float(res.lift_std[-1]),
         "lift_error": float((res.lift[-1] - lt) / absl),
-        "load_error": relative_l2(rec.model.space, rec.load_field(), load_field(res, model)),
+        "load_error": rec.load_error(load_field(res, model)),  # relative L2 against the final true load
         "covered": bool(abs(res.lift[-1] - lt) <= res.lift_std[-1]),
         "adequate": res.info.get("model_adequate"),
         "chi2": (res.info.get("adequacy") or {}).get("chi2_per_datum"),
@@ -110,8 +115,8 @@ def run(load, truth, pf, damping, noise, seed, estimator, settings, model) -> di
         "cpu_s": cpu,
     }
     if "parameters" in res.info:
-        est, std, p = res.info["parameters"], res.info["parameters_std"], rec.params
-        true = {"prestrain_x": p.eps0_x, "prestrain_y": p.eps0_y, "damping": p.viscous_scale}
+        est, std = res.info["parameters"], res.info["parameters_std"]
+        true = {k: rec.parameters[k] for k in ("prestrain_x", "prestrain_y", "damping")}
         out["parameters"], out["parameters_std"], out["true_parameters"] = est, std, true
         out["parameter_rel_error"] = {k: (est[k] - true[k]) / true[k] for k in true}
         # the combination the first mode's frequency fixes: omega_1^2 ~ Tx kx_1 + Ty ky_1
@@ -120,9 +125,9 @@ def run(load, truth, pf, damping, noise, seed, estimator, settings, model) -> di
         out["first_mode_combination_error"] = float(comb - 1)
     if load.endswith("+gust"):
         k = np.searchsorted(res.t, 0.1)
-        idx = np.searchsorted(rec.t, res.t)
-        lh = rec.lift[idx]
-        steady = rec.steady_lift
+        idx = np.searchsorted(rec.trajectory.t, res.t)
+        lh = lift[idx]
+        steady = float(lift[0] / rec.load_factor[0])  # the lift of the load shape, without the gust
         out["gust_rms_over_steady"] = float(np.sqrt(np.mean((res.lift[k:] - lh[k:]) ** 2)) / steady)
         out["gust_peak_error"] = float((res.lift.max() - lh.max()) / lh.max())
         out["gust_delay_ms"] = float(1000 * (res.t[np.argmax(res.lift)] - res.t[np.argmax(lh)]))

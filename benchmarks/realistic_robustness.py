@@ -13,6 +13,9 @@ adequate without a warning (a confident wrong answer). ::
     nice python benchmarks/realistic_robustness.py            # all cases, about 5 min CPU
     nice python benchmarks/realistic_robustness.py --cases suction,bump
     nice python benchmarks/realistic_robustness.py --cases steady-start --seed 1 --max-iter 200
+    nice python benchmarks/realistic_robustness.py --cases light     # quickest
+
+Records: :func:`wingopt.workflows.protocols.simulate_case` (``truth="fvk"``, 49x25, 2 sub-steps).
 """
 
 from __future__ import annotations
@@ -28,14 +31,14 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from wingopt.estimation.realistic import RealisticSettings  # noqa: E402
-from wingopt.membrane.loads import PressureLoad  # noqa: E402
+from wingopt.membrane import Gust, PressureLoad, load_case  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
 from wingopt.workflows.identify import identify  # noqa: E402
-from wingopt.workflows.records import Gust, simulate_record, truth_load  # noqa: E402
+from wingopt.workflows.protocols import simulate_case  # noqa: E402
 
 
 def _scaled(name: str, factor: float, W: float, L: float) -> PressureLoad:
-    base = truth_load(name, W, L)
+    base = load_case(name, W, L)
     return PressureLoad(f"{factor:g} x {name}", lambda x, y: factor * base(x, y), base.description)
 
 
@@ -54,11 +57,11 @@ def cases(problem) -> dict:
         "suction": dict(load=_scaled("L1", -1.0, W, L)),
         "bump": dict(load=_bump(W, L)),
         "L3": dict(load="L3"),
-        "LE-unequal-d2": dict(load="LE", prestrain=(1.2 * e0, 0.8 * e0), damping_scale=2.0),
+        "LE-unequal-d2": dict(load="LE", prestrain=(1.2 * e0, 0.8 * e0), damping=2.0),
         "late-gust": dict(load="L1", gust=Gust(start=0.7, duration=0.2, amplitude=0.3)),
         "500Hz": dict(load="L1", dt=2e-3),
         "2s": dict(load="L1", t_end=2.0),
-        "no-bubble": dict(load="L1", bubble_peak=0.0),
+        "no-bubble": dict(load="L1", start="rest"),
         "steady-start": dict(load="L1", skip_s=0.5),
     }
 
@@ -68,15 +71,17 @@ def run(name: str, spec: dict, problem, seed: int, max_iter: int | None = None) 
     noise = spec.pop("noise", 0.01)
     skip = spec.pop("skip_s", 0.0)  # the record starts this late: the wing already loaded, no transient
     t_end = spec.pop("t_end", 1.0) + skip
-    rec = simulate_record(problem, noise=noise, seed=seed, t_end=t_end, **spec)
-    k = int(np.searchsorted(rec.t, skip - 1e-12))
-    data = np.column_stack([rec.t[k:] - rec.t[k], rec.values[k:]])
+    load = spec.pop("load")
+    rec = simulate_case(problem, load, noise, seed, t_end=t_end, truth="fvk", tell_noise=False, **spec)
+    t, values = rec.measurements.t, rec.measurements.values
+    k = int(np.searchsorted(t, skip - 1e-12))
+    data = np.column_stack([t[k:] - t[k], values[k:]])
     c0 = time.process_time()
     settings = None if max_iter is None else RealisticSettings(max_iter=max_iter)
     out = identify(problem, data=data, settings=settings)
     cpu = time.process_time() - c0
     res = out.result
-    lt = float(rec.lift[-1])
+    lt = float(rec.lift_history[-1])
     lift, std = float(res.lift[-1]), float(res.lift_std[-1]) if res.lift_std is not None else float("nan")
     err = lift - lt
     adequate = res.info.get("model_adequate")
