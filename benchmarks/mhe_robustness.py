@@ -18,6 +18,12 @@ window), lift spread (peak to peak) over the last half for constant loads, CPU s
 
     OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/mhe_robustness.py --loads trail,dome \\
         --seeds 300-302 --out design.jsonl
+    OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 python benchmarks/mhe_robustness.py --loads dome \\
+        --seeds 300 --scenarios rest-step-300   # quickest
+
+The truth record is the linear full-order forward model (:func:`wingopt.membrane.forward_model`,
+exact for the linear membrane) through :func:`wingopt.membrane.simulate_truth`; the load factor is
+linear between samples (the retired ``simulate_response`` held it over each sample).
 """
 
 from __future__ import annotations
@@ -31,10 +37,8 @@ import numpy as np
 
 from wingopt.estimation.mhe import MHESettings, mhe_identify
 from wingopt.fe import integrate
-from wingopt.measurements import Measurements
-from wingopt.membrane import MembraneModel, add_noise, bubble, simulate_response
+from wingopt.membrane import MembraneModel, PressureLoad, RecordProtocol, forward_model, relative_l2, simulate_truth
 from wingopt.problem import load_problem
-from wingopt.workflows.protocols import relative_l2
 from wingopt.workflows.studies import load_field
 
 RISE_S = 0.04
@@ -83,13 +87,12 @@ def pressure(problem, name: str):
 def run_case(problem, truth, est, load, scenario, seed, noise, settings, profile_fn=amplitude) -> dict:
     rate, start, prof = SCENARIOS[scenario.removesuffix("-rw")]
     P = pressure(problem, load)
-    f = truth.project(P)
     lift0 = integrate(truth.space, P, order=8)
     dt = 1.0 / rate
-    z0 = bubble(problem.width, problem.height) if start == "bubble" else None
-    traj = simulate_response(truth, lambda t: f * profile_fn(prof, t), t_end=T_END, dt=dt, z0=z0)
-    y, _ = add_noise(traj.outputs, noise, seed)
-    meas = Measurements(traj.t, y, problem.sensor_names)
+    factor = np.vectorize(lambda t: profile_fn(prof, float(t)), otypes=[float])
+    protocol = RecordProtocol(t_end=T_END, dt=dt, start=start, noise=noise, seed=seed, load_factor=factor)
+    rec = simulate_truth(forward_model(truth, "linear"), PressureLoad(load, P), protocol)
+    traj, meas = rec.trajectory, rec.measurements  # the estimator is not told the noise level
     if scenario.endswith("-rw"):
         settings = settings.replace(load_model="random_walk")
     c0 = time.process_time()
