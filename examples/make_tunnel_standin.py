@@ -95,9 +95,8 @@ def main(seed: int = 2012) -> list[Path]:
         f"centre deflection {1000 * wc:.2f} mm",
     ]
     out = [write_record(DATA / "tunnel_300Hz.csv", rec.measurements, header)]
-    print(
-        f"tunnel record: {rec.measurements.count} frames, lift {mean_lift:.4f} N, wc {1000 * wc:.2f} mm, {cpu:.0f} s CPU"
-    )
+    n = rec.measurements.count
+    print(f"tunnel record: {n} frames, lift {mean_lift:.4f} N, wc {1000 * wc:.2f} mm, {cpu:.0f} s CPU")
     cal = simulate_truth(
         fwd,
         PressureLoad("no flow", lambda x, y: 0.0 * x),

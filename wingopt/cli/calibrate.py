@@ -14,8 +14,8 @@ import json
 from wingopt.errors import InputError
 from wingopt.problem import parse_mesh
 from wingopt.resources import parse_size
-from wingopt.results import check_writable, to_jsonable
-from wingopt.workflows.calibrate import calibrate_membrane, write_calibration_outputs
+from wingopt.results import to_jsonable
+from wingopt.workflows.calibrate import calibrate_membrane, check_outputs, write_calibration_outputs
 
 ORDER = 35
 
@@ -63,7 +63,7 @@ def register(sub, common) -> None:
 
 
 def run(args) -> int:
-    check_writable(args.out)
+    check_outputs(args.out, args.write_problem)
     if args.write_problem is not None and str(args.write_problem) == str(args.problem):
         raise InputError(f"--write-problem {args.write_problem!r}: the input problem file; write a new file")
     run_ = calibrate_membrane(

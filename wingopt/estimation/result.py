@@ -86,6 +86,14 @@ class IdentificationResult:
     load_space: Any = None
 
     @property
+    def reported_lift(self) -> tuple[float, float | None]:
+        """The lift a summary reports and its 1-sigma: the last estimate, or for a steady record
+        (``info["record"] == "steady"``) the steady lift, which the history fluctuates about."""
+        if self.info.get("record") == "steady":
+            return float(self.info["steady_lift_N"]), float(self.info["steady_lift_std_N"])
+        return float(self.lift[-1]), None if self.lift_std is None else float(self.lift_std[-1])
+
+    @property
     def final_load(self) -> np.ndarray:
         return self.load[-1]
 

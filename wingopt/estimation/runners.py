@@ -176,20 +176,21 @@ def model_form_band(model: MembraneModel, meas: Measurements, result: Identifica
     the alternative's band (``info["model_form"]``). The estimate is unchanged.
     """
     alt = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk"), initial_load=initial_load)
-    diff = float(result.lift[-1] - alt.lift[-1])
-    alt_std = 0.0 if alt.lift_std is None else float(alt.lift_std[-1])
+    alt_lift, alt_sd = alt.reported_lift
+    diff = float(result.lift[-1] - alt_lift)
+    alt_std = 0.0 if alt_sd is None else alt_sd
     own = np.zeros_like(result.lift) if result.lift_std is None else np.asarray(result.lift_std, dtype=float)
     std = np.sqrt(own**2 + (abs(diff) + alt_std) ** 2)
     info = dict(result.info)
     info["model_form"] = {
         "alternative": alt.info.get("model", "realistic (FvK)"),
-        "alternative_lift_N": float(alt.lift[-1]),
-        "alternative_lift_std_N": None if alt.lift_std is None else float(alt.lift_std[-1]),
+        "alternative_lift_N": alt_lift,
+        "alternative_lift_std_N": alt_sd,
         "alternative_adequate": alt.info.get("model_adequate"),
         "difference_N": diff,
     }
     info["warnings"] = list(info.get("warnings", [])) + [
-        f"model-form uncertainty: the FvK whole-record estimator gives {alt.lift[-1]:.4g} N on the same data "
+        f"model-form uncertainty: the FvK whole-record estimator gives {alt_lift:.4g} N on the same data "
         f"(± {alt_std:.3g} N), {diff:+.3g} N from this estimate; the band reaches across that estimate's band"
     ]
     return dataclasses.replace(result, lift_std=std, info=info)

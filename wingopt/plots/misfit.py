@@ -9,7 +9,7 @@ import numpy as np
 from wingopt.plots import pyplot as _pyplot
 from wingopt.plots import save as _save
 
-__all__ = ["plot_misfit"]
+__all__ = ["plot_misfit", "plot_sensor_means"]
 
 
 def plot_misfit(path: Path, adequacy: dict, title: str = "") -> Path:
@@ -31,4 +31,26 @@ def plot_misfit(path: Path, adequacy: dict, title: str = "") -> Path:
     ax.set_title(f"{title} · model {verdict}" if title else f"model {verdict}")
     ax.grid(alpha=0.3, which="both")
     ax.legend(loc="best")
+    return _save(fig, path)
+
+
+def plot_sensor_means(path: Path, info: dict, names, title: str = "") -> Path:
+    """A steady record's data and fit: each sensor's mean with its standard error, the fitted static
+    outputs, and the RMS fluctuation about the mean (what buffeting and noise add)."""
+    plt = _pyplot()
+    mean = np.asarray(info["sensor_mean"], dtype=float)
+    se = np.asarray(info["sensor_mean_std"], dtype=float)
+    fit = np.asarray(info["sensor_fit"], dtype=float)
+    rms = np.asarray(info["fluctuation_rms"], dtype=float) * np.abs(mean)
+    x = np.arange(mean.size)
+    fig, ax = plt.subplots(figsize=(6.4, 3.0))
+    ax.bar(x - 0.2, mean, width=0.4, yerr=rms, color="C0", alpha=0.5, label="record mean (bar: RMS fluctuation)")
+    ax.errorbar(x - 0.2, mean, yerr=2 * se, fmt="none", ecolor="k", capsize=4, label="2 standard errors")
+    ax.bar(x + 0.2, fit, width=0.4, color="C1", label="static fit")
+    ax.set_xticks(x, list(names))
+    ax.set_ylabel("sensor output")
+    chi = info.get("adequacy", {}).get("chi2_per_datum")
+    ax.set_title(f"{title} · chi-square per datum {chi:.2f}" if chi is not None else title)
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(loc="best", fontsize="small")
     return _save(fig, path)

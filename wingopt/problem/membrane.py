@@ -65,7 +65,8 @@ class IdentificationSettings:
     then the prior.
 
     ``leading_edge`` (``"x0"``: the flow meets the wing at ``x = 0``; ``"x1"``: at ``x = W``; unset:
-    unknown) tells the estimators of steady records which aerodynamic pressure to expect.
+    unknown) tells the estimators of steady records which aerodynamic pressure to expect;
+    ``pressure_prior`` (:data:`PRESSURE_PRIORS`) where the pressure may act.
     """
 
     dt: float = 1.0e-3
@@ -82,9 +83,16 @@ class IdentificationSettings:
     prestrain_correlation: float = 0.0
     calibration: str = ""
     leading_edge: str | None = None
+    pressure_prior: str = "auto"
 
 
 FREE_PARAMETERS = ("prestrain_x", "prestrain_y", "damping")
+
+PRESSURE_PRIORS = ("auto", "interior", "frame", "aerodynamic")
+"""Where the pressure may act: ``interior`` (zero on the frame, the seed's loads), ``frame`` (up to
+the frame: smooth interior shapes plus free-edge ones), ``aerodynamic`` (thin-airfoil shapes from
+the leading edge: an assumption that narrows a steady record's band), ``auto`` (a transient record
+weighs interior and frame by evidence; a steady record, whose four means cannot tell, takes frame)."""
 """Names allowed in ``[identification] free_parameters``."""
 
 
@@ -180,6 +188,7 @@ def from_table(root: Table, name: str) -> MembraneProblem:
     correlation = ident.number("prestrain_correlation", 0.0, lo=-0.999, hi=0.999)
     calibration = ident.string("calibration", "")
     leading_edge = ident.string("leading_edge", None, choices=("x0", "x1")) if ident.has("leading_edge") else None
+    pressure_prior = ident.string("pressure_prior", "auto", choices=PRESSURE_PRIORS)
     noise = None
     if ident.has("noise_std"):
         if isinstance(ident.peek("noise_std"), list):
@@ -209,6 +218,7 @@ def from_table(root: Table, name: str) -> MembraneProblem:
             prestrain_correlation=correlation,
             calibration=calibration,
             leading_edge=leading_edge,
+            pressure_prior=pressure_prior,
         ),
         name=name,
         source=root.source,

@@ -27,11 +27,24 @@ from wingopt.measurements import Measurements, read_measurements
 from wingopt.membrane import MembraneModel
 from wingopt.problem import load_problem, read_problem_table
 from wingopt.problem.toml_text import table_text
-from wingopt.results import ResultDirectory, check_file_writable, to_jsonable, write_json, write_text_atomic
+from wingopt.results import (
+    ResultDirectory,
+    check_file_writable,
+    check_writable,
+    to_jsonable,
+    write_json,
+    write_text_atomic,
+)
 
 log = logging.getLogger(__name__)
 
-__all__ = ["CalibrationRun", "calibrate_membrane", "calibrated_problem_text", "write_calibration_outputs"]
+__all__ = [
+    "CalibrationRun",
+    "calibrate_membrane",
+    "calibrated_problem_text",
+    "check_outputs",
+    "write_calibration_outputs",
+]
 
 
 @dataclass(eq=False)
@@ -140,12 +153,19 @@ def calibrated_problem_text(run: CalibrationRun) -> str:
     return table_text(read_problem_table(run.problem.source), {"identification": ident}, header)
 
 
+def check_outputs(out_dir: str | Path, write_problem: str | Path | None = None) -> None:
+    """Refuse, before any work, outputs that cannot be written: the result directory, and the problem
+    file unless it goes into that directory (created by the run)."""
+    check_writable(out_dir)
+    if write_problem is not None and Path(write_problem).resolve().parent != Path(out_dir).resolve():
+        check_file_writable(write_problem, "--write-problem")
+
+
 def write_calibration_outputs(run: CalibrationRun, out_dir: str | Path, write_problem: str | Path | None = None):
     """Write ``summary.json`` (atomically) and, with ``write_problem``, the calibrated problem file
     (an existing file is kept as ``NAME.bak``). Returns ``(out_dir, problem path or None, backup or None)``."""
     text = calibrated_problem_text(run) if write_problem is not None else None
-    if write_problem is not None:
-        check_file_writable(write_problem, "--write-problem")
+    check_outputs(out_dir, write_problem)
     with ResultDirectory(out_dir) as tmp:
         write_json(tmp / "summary.json", to_jsonable(run.summary()))
         if text is not None:

@@ -71,7 +71,7 @@ class IdentifyRun:
 
     @property
     def lift(self) -> float:
-        return float(self.result.lift[-1])
+        return self.result.reported_lift[0]
 
     def errors(self) -> dict:
         """Final relative L2 errors against the truth (simulated records only)."""
@@ -96,7 +96,7 @@ class IdentifyRun:
             "mesh": list(self.problem.nodes),
             **self.protocol,
             "lift_N": self.lift,
-            "lift_std_N": None if res.lift_std is None else float(res.lift_std[-1]),
+            "lift_std_N": res.reported_lift[1],
             "wall_s": self.wall_s,
             "regularization": res.regularization,
             "samples": int(self.measurements.count),
@@ -343,10 +343,14 @@ def _plots(tmp: Path, run: IdentifyRun, X, Y, Pg) -> None:
     plot_lift(
         tmp / "lift.png", result.t, result.lift, result.lift_std, None if case is None else case.true_lift, title, first
     )
-    if "adequacy" in result.info:
+    if "segments_t_s" in result.info.get("adequacy", {}):
         from wingopt.plots.misfit import plot_misfit
 
         plot_misfit(tmp / "misfit.png", result.info["adequacy"], title)
+    elif "sensor_fit" in result.info:  # a steady record: its data are the sensors' means
+        from wingopt.plots.misfit import plot_sensor_means
+
+        plot_sensor_means(tmp / "misfit.png", result.info, run.model.problem.sensor_names, title)
     if case is not None:
         # Error histories on a subsample of the times (each needs two integrals on the truth mesh).
         idx = np.unique(np.linspace(0, result.t.size - 1, 41).astype(int))

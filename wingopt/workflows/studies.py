@@ -124,7 +124,7 @@ def evaluate(case: TruthRecord, result: IdentificationResult, model: MembraneMod
     space = case.truth_model.space
     lerr = case.load_error(P)
     derr = case.deflection_error(model.field(result.final_deflection))
-    lift = float(result.lift[-1])
+    lift = result.reported_lift[0]
     true = case.true_lift
     std = None if result.lift_std is None else float(result.lift_std[-1])
     corr = integrate(space, lambda x, y: case.load(x, y) * P(x, y), order=8)

@@ -20,18 +20,18 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation.noise import resolve_noise_std
 from wingopt.estimation.realistic.adequacy import assess
-from wingopt.estimation.realistic.frame_check import embed, frame_shapes, log_evidence, weigh
-from wingopt.estimation.realistic.load_model import GustAmplitude, LoadShapes
+from wingopt.estimation.realistic.frame_check import FRAME_SHAPES, embed, frame_shapes, log_evidence, weigh
+from wingopt.estimation.realistic.load_model import LoadShapes
 from wingopt.estimation.realistic.model_form import PRESTRAIN_MODEL_FORM_REL, prestrain_std_with_model_form
 from wingopt.estimation.realistic.prior_check import load_prior_check
 from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior, RecordProblem
+from wingopt.estimation.realistic.settings import LOAD_MODELS, MEMBRANE_MODELS, RealisticSettings
 from wingopt.estimation.realistic.solver import Fit, levenberg_marquardt
 from wingopt.estimation.realistic.start import initial_state_prior, modal_model, scan
 from wingopt.estimation.realistic.steady_estimator import is_steady, steady_identify
@@ -44,95 +44,6 @@ from wingopt.membrane.modal import FvKModal
 __all__ = ["RealisticSettings", "realistic_identify", "LOAD_MODELS", "MEMBRANE_MODELS"]
 
 log = logging.getLogger(__name__)
-
-LOAD_MODELS = ("auto", "constant", "gust")
-MEMBRANE_MODELS = ("berger", "fvk")
-
-
-@dataclass(frozen=True)
-class RealisticSettings:
-    """Settings of :func:`realistic_identify`.
-
-    Attributes
-    ----------
-    modes : int
-        Modes of the modal model (lowest at the file's prestrain).
-    state_modes : int
-        Modes whose initial displacement and velocity are unknowns (the others start at the prior
-        mean: they decay within a few ms).
-    shapes : int
-        Load shapes (smoothest of ``Lam``, zero on the frame).
-    edge_shapes : int
-        Free-edge load shapes more (:class:`~.load_model.LoadShapes`): loads that act up to the frame.
-    record : {"auto", "transient", "steady"}
-        ``steady``: a loaded wing in steady flow, no transient: the sensors' mean is fitted with the
-        static membrane (:mod:`.steady_estimator`); ``transient``: the whole time series; ``auto``:
-        ``steady`` when the record has no transient (:func:`~.steady_estimator.is_steady`).
-    frame : {"auto", "off"}
-        ``auto``: also fit the prior whose load acts up to the frame and weigh the two by their
-        evidence (:mod:`.frame_check`); ``off``: the shapes as given.
-    membrane : {"auto", "nonlinear", "linear"}
-        ``nonlinear``: the Berger model; ``linear``: the same estimator with the deflection's own
-        stretch left out; ``auto``: both are fitted (constant load) and the one with the smaller
-        chi-square (same number of unknowns: the likelihood ratio) is kept.
-    free, prestrain_rel, damping_rel :
-        Free parameters and priors (see :class:`ParameterPrior`); ``None``: the problem file's.
-    load_model : {"auto", "constant", "gust"}
-    gust : GustAmplitude
-        Time scale (knot spacing, s) and acceleration prior of the gust amplitude.
-    substeps, substep_s :
-        Integration sub-steps per sample: at least ``substeps`` and at most ``substep_s`` seconds
-        each (the tension oscillates at twice the first frequency, 164 Hz: at 300 Hz data 7
-        sub-steps are used).
-    segment_s : float
-        Segment length (s) of the misfit report.
-    stretch_gain : float
-        Factor on the deflection's own stretch (1: Berger, the default and what was measured;
-        about 1.45 matches the FvK membrane's mean stiffening at 200 Pa). Berger model only.
-    membrane_model : {"berger", "fvk"}
-        The nonlinear model: ``berger`` (uniform tension following the mean stretch) or ``fvk``
-        (Föppl–von Kármán's exact cubic stiffness on the ``cubic_modes`` lowest modes,
-        :class:`~wingopt.membrane.modal.fvk.FvKModal`, built on the estimator's mesh).
-    cubic_modes : int
-        Modes with FvK's cubic stiffness (``membrane_model="fvk"``).
-    """
-
-    modes: int = 48
-    state_modes: int = 12
-    substeps: int = 2
-    substep_s: float = 0.5e-3
-    shapes: int = 15
-    edge_shapes: int = 0
-    frame: str = "auto"
-    record: str = "auto"
-    membrane: str = "auto"
-    free: tuple[str, ...] | None = None
-    prestrain_rel: float | None = None
-    damping_rel: float | None = None
-    load_model: str = "auto"
-    gust: GustAmplitude = field(default_factory=GustAmplitude)
-    segment_s: float = 0.05
-    max_iter: int = 40
-    kappa: float = 1.0
-    prior_power: float = 1.0
-    stretch_gain: float = 1.0
-    membrane_model: str = "berger"
-    cubic_modes: int = 16
-
-    def __post_init__(self) -> None:
-        if self.membrane_model not in MEMBRANE_MODELS:
-            raise InputError(f"membrane_model = {self.membrane_model!r}: expected one of {', '.join(MEMBRANE_MODELS)}")
-        if self.membrane not in ("auto", "nonlinear", "linear"):
-            raise InputError(f"membrane = {self.membrane!r}: expected auto, nonlinear or linear")
-        if self.record not in ("auto", "transient", "steady"):
-            raise InputError(f"record = {self.record!r}: expected auto, transient or steady")
-        if self.frame not in ("auto", "off"):
-            raise InputError(f"frame = {self.frame!r}: expected auto or off")
-        if self.load_model not in LOAD_MODELS:
-            raise InputError(f"load_model = {self.load_model!r}: expected one of {', '.join(LOAD_MODELS)}")
-
-    def replace(self, **kw) -> RealisticSettings:
-        return dataclasses.replace(self, **kw)
 
 
 def _fit(rp: RecordProblem, theta0: np.ndarray, s: RealisticSettings) -> Fit:
@@ -161,7 +72,7 @@ def realistic_identify(
     dt = float(np.median(np.diff(meas.t)))
     substeps = max(s.substeps, int(np.ceil(dt / s.substep_s - 1e-9)))
     bm = modal_model(model, s.membrane_model, min(s.modes, model.n), dt, substeps, s.stretch_gain, s.cubic_modes)
-    shapes = LoadShapes.build(model, s.shapes, p0, s.kappa, s.prior_power, s.edge_shapes)
+    shapes, weigh_frame = _load_prior(model, p0, s)
     prior = ParameterPrior.from_problem(problem, s.free, s.prestrain_rel, s.damping_rel)
     x_mean, x_std, bubble_known = initial_state_prior(bm, problem, meas.values)
     candidates = {}
@@ -210,7 +121,7 @@ def realistic_identify(
             rp, fit, chosen = rg, fit_g, "gust"
             ad = assess(meas.t, _residual_matrix(rp, fit), fit.effective_parameters, s.segment_s)
     res, fit = _finish(rp, fit, fits, chosen, ad, sigma, noise_source, t0, s, bubble_known, p0)
-    if s.frame == "auto" and s.edge_shapes == 0:
+    if weigh_frame:
         rf = dataclasses.replace(rp, shapes=frame_shapes(model, shapes, s, p0))
         fit_f = _fit(rf, embed(rp, fit.theta, rf), s)
         ad_f = assess(meas.t, _residual_matrix(rf, fit_f), fit_f.effective_parameters, s.segment_s)
@@ -219,6 +130,23 @@ def realistic_identify(
     res.info["membrane_selection"] = selection
     res.wall_s = time.perf_counter() - t0
     return res
+
+
+def _load_prior(model: MembraneModel, p0: float, s: RealisticSettings) -> tuple[LoadShapes, bool]:
+    """The load shapes of a transient record and whether the frame prior is weighed against them
+    (``[identification] pressure_prior``: ``auto`` weighs, ``interior``/``frame``/``aerodynamic`` take one)."""
+    ident = model.problem.identification
+    kind = ident.pressure_prior
+    if kind == "aerodynamic":
+        if not ident.leading_edge:
+            raise InputError(
+                "[identification] pressure_prior = 'aerodynamic' on a transient record: needs leading_edge = 'x0' "
+                "or 'x1' (which edge the flow meets)"
+            )
+        return LoadShapes.aerodynamic(model, p0, ident.leading_edge, s.kappa), False
+    edge = s.edge_shapes or (FRAME_SHAPES if kind == "frame" else 0)
+    shapes = LoadShapes.build(model, s.shapes, p0, s.kappa, s.prior_power, edge)
+    return shapes, s.frame == "auto" and kind == "auto" and edge == 0
 
 
 def _frame_note(w_interior: float, w_frame: float) -> str:

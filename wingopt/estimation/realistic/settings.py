@@ -1,0 +1,101 @@
+"""Settings of the whole-record estimator (:func:`~.estimator.realistic_identify`) and of the steady
+records' estimator it routes to (:func:`~.steady_estimator.steady_identify`)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+from wingopt.errors import InputError
+from wingopt.estimation.realistic.load_model import GustAmplitude
+
+__all__ = ["RealisticSettings", "LOAD_MODELS", "MEMBRANE_MODELS"]
+
+LOAD_MODELS = ("auto", "constant", "gust")
+MEMBRANE_MODELS = ("berger", "fvk")
+
+
+@dataclass(frozen=True)
+class RealisticSettings:
+    """Settings of :func:`realistic_identify`.
+
+    Attributes
+    ----------
+    modes : int
+        Modes of the modal model (lowest at the file's prestrain).
+    state_modes : int
+        Modes whose initial displacement and velocity are unknowns (the others start at the prior
+        mean: they decay within a few ms).
+    shapes : int
+        Load shapes (smoothest of ``Lam``, zero on the frame).
+    edge_shapes : int
+        Free-edge load shapes more (:class:`~.load_model.LoadShapes`): loads that act up to the frame.
+    record : {"auto", "transient", "steady"}
+        ``steady``: a loaded wing in steady flow, no transient: the sensors' mean is fitted with the
+        static membrane (:mod:`.steady_estimator`); ``transient``: the whole time series; ``auto``:
+        ``steady`` when the record has no transient (:func:`~.steady_estimator.is_steady`).
+    frame : {"auto", "off"}
+        ``auto``: also fit the prior whose load acts up to the frame and weigh the two by their
+        evidence (:mod:`.frame_check`); ``off``: the shapes as given.
+    membrane : {"auto", "nonlinear", "linear"}
+        ``nonlinear``: the Berger model; ``linear``: the same estimator with the deflection's own
+        stretch left out; ``auto``: both are fitted (constant load) and the one with the smaller
+        chi-square (same number of unknowns: the likelihood ratio) is kept.
+    free, prestrain_rel, damping_rel :
+        Free parameters and priors (see :class:`ParameterPrior`); ``None``: the problem file's.
+    load_model : {"auto", "constant", "gust"}
+    gust : GustAmplitude
+        Time scale (knot spacing, s) and acceleration prior of the gust amplitude.
+    substeps, substep_s :
+        Integration sub-steps per sample: at least ``substeps`` and at most ``substep_s`` seconds
+        each (the tension oscillates at twice the first frequency, 164 Hz: at 300 Hz data 7
+        sub-steps are used).
+    segment_s : float
+        Segment length (s) of the misfit report.
+    stretch_gain : float
+        Factor on the deflection's own stretch (1: Berger, the default and what was measured;
+        about 1.45 matches the FvK membrane's mean stiffening at 200 Pa). Berger model only.
+    membrane_model : {"berger", "fvk"}
+        The nonlinear model: ``berger`` (uniform tension following the mean stretch) or ``fvk``
+        (Föppl–von Kármán's exact cubic stiffness on the ``cubic_modes`` lowest modes,
+        :class:`~wingopt.membrane.modal.fvk.FvKModal`, built on the estimator's mesh).
+    cubic_modes : int
+        Modes with FvK's cubic stiffness (``membrane_model="fvk"``).
+    """
+
+    modes: int = 48
+    state_modes: int = 12
+    substeps: int = 2
+    substep_s: float = 0.5e-3
+    shapes: int = 15
+    edge_shapes: int = 0
+    frame: str = "auto"
+    record: str = "auto"
+    membrane: str = "auto"
+    free: tuple[str, ...] | None = None
+    prestrain_rel: float | None = None
+    damping_rel: float | None = None
+    load_model: str = "auto"
+    gust: GustAmplitude = field(default_factory=GustAmplitude)
+    segment_s: float = 0.05
+    max_iter: int = 40
+    kappa: float = 1.0
+    prior_power: float = 1.0
+    stretch_gain: float = 1.0
+    membrane_model: str = "berger"
+    cubic_modes: int = 16
+
+    def __post_init__(self) -> None:
+        if self.membrane_model not in MEMBRANE_MODELS:
+            raise InputError(f"membrane_model = {self.membrane_model!r}: expected one of {', '.join(MEMBRANE_MODELS)}")
+        if self.membrane not in ("auto", "nonlinear", "linear"):
+            raise InputError(f"membrane = {self.membrane!r}: expected auto, nonlinear or linear")
+        if self.record not in ("auto", "transient", "steady"):
+            raise InputError(f"record = {self.record!r}: expected auto, transient or steady")
+        if self.frame not in ("auto", "off"):
+            raise InputError(f"frame = {self.frame!r}: expected auto or off")
+        if self.load_model not in LOAD_MODELS:
+            raise InputError(f"load_model = {self.load_model!r}: expected one of {', '.join(LOAD_MODELS)}")
+
+    def replace(self, **kw) -> RealisticSettings:
+        return dataclasses.replace(self, **kw)
