@@ -52,6 +52,9 @@ MODES, CUBIC_MODES = 10**9, 30
 """The modal model of the iterations: every mode of the mesh (a load that peaks at the frame excites
 the high ones statically), the lowest 16 with FvK's cubic stiffness (the realistic estimator's)."""
 
+DEFECT_TOL = 0.05
+"""The full-order correction stops when it moves every output by less than this fraction of tau."""
+
 BATCHES = 20
 """Batches of the record whose means give the variance of the mean (buffeting is correlated over a
 few ms; 20 batches of a 1.5 s record are 75 ms long)."""
@@ -203,8 +206,12 @@ class SteadyProblem:
         return g
 
 
-def fit_steady(sp_: SteadyProblem, starts: list[np.ndarray], max_iter: int = 30, corrections: int = 2) -> Fit:
-    """The best of Levenberg–Marquardt runs from ``starts`` (by cost), corrected to the full order."""
+def fit_steady(sp_: SteadyProblem, starts: list[np.ndarray], max_iter: int = 30, corrections: int = 8) -> Fit:
+    """The best of Levenberg–Marquardt runs from ``starts`` (by cost), corrected to the full order.
+
+    The corrections repeat until the defect moves the outputs by less than :data:`DEFECT_TOL` of
+    their standard error: the answer is then the full-order model's, whatever the modal truncation.
+    """
     best = None
     sp_.defect = np.zeros(sp_.data.mean.size)
     for th in starts:
@@ -220,11 +227,14 @@ def fit_steady(sp_: SteadyProblem, starts: list[np.ndarray], max_iter: int = 30,
     for _ in range(corrections):
         sp_._z = None
         try:
-            sp_.defect = sp_.defect + sp_.outputs(best.theta, full=True) - sp_.outputs(best.theta)
+            step = sp_.outputs(best.theta, full=True) - sp_.outputs(best.theta)
         except (InputError, ArithmeticError, SolverError) as exc:
             log.debug("full-order correction failed: %s", exc)
             break
+        sp_.defect = sp_.defect + step
         best = levenberg_marquardt(sp_, best.theta, max_iter)
+        if np.all(np.abs(step) <= DEFECT_TOL * sp_.tau):
+            break
     return best
 
 
