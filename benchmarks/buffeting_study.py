@@ -149,7 +149,7 @@ def table(rows: list[dict]) -> str:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--records", default=os.environ.get("WINGOPT_TUNNEL_RECORDS", "records"), help="record folder")
-    ap.add_argument("--cases", nargs="*", help="case names (globs; default: LE at 0.04/0.05/0.06)")
+    ap.add_argument("--cases", nargs="*", help="case names (globs; default: LE at 0.04/0.05/0.06; none: --cases)")
     ap.add_argument("--extra", action="store_true", help="add the TE, anti, bump, damping x2 and order-1 cases")
     ap.add_argument("--seeds", nargs="*", type=int, default=[0, 1, 2, 3, 4])
     ap.add_argument("--frames", nargs="*", type=int, default=[450, 1400])
@@ -164,7 +164,7 @@ def main(argv=None) -> int:
         with open(a.table) as fh:
             print(table([json.loads(line) for line in fh if line.strip()]))
         return 0
-    cases = (a.cases or DEFAULT_CASES) + (EXTRA_CASES if a.extra else [])
+    cases = (DEFAULT_CASES if a.cases is None else a.cases) + (EXTRA_CASES if a.extra else [])
     paths = []
     for c in cases:
         for s in a.seeds:

@@ -167,7 +167,7 @@ class BuffetingProblem:
             "s": np.einsum("pm,m->p", Cq, q) + sp_.defect,
             "ds": 2.0 * Cq @ dq.T,  # (p, P)
             "J": 2.0 * Cq + self.jacobian_defect,
-            "dJ": 2.0 * np.einsum("pij,aj->api", fm.sensor_matrices, dq),  # (P, p, m)
+            "dJ": 2.0 * (fm.sensor_matrices.reshape(-1, fm.m) @ dq.T).reshape(-1, fm.m, P).transpose(2, 0, 1),
             "Kc": np.diag(k0[:r]) + 3.0 * Sq,
             "dK": dK,
             "k0": k0,
@@ -199,15 +199,21 @@ class BuffetingProblem:
         h = x @ J[:, :r].T + xl @ J[:, r:].T
         if not derivatives:
             return h, None
-        lam = np.einsum("fk,kp,ik->fip", rho, Wv @ J[:, :r].T, Vq)  # G J^T (F, r, p)
+        # dh = dJ x + lambda^T (du - dK x - i w dC x), lambda = G J^T (G symmetric); all products as GEMMs
+        P = st["du"].shape[0]
+        lam = Vq @ (rho[:, :, None] * (Wv @ J[:, :r].T)[None])  # (F, r, p)
         du, dK, dc, dJ = st["du"], st["dK"], st["dc"], st["dJ"]
-        z = du[:, None, :r] - np.einsum("ars,fs->afr", dK, x) - 1j * w[None, :, None] * dc[:, None, :r] * x[None]
-        dh = np.einsum("frp,afr->afp", lam, z) + np.einsum("api,fi->afp", dJ[:, :, :r], x)
-        Jl = J[:, r:]
-        dh += np.einsum("fj,aj,pj->afp", g, du[:, r:], Jl)
-        dh -= np.einsum("fj,aj,pj->afp", g * xl, st["dk0"][:, r:], Jl)
-        dh -= np.einsum("fj,aj,pj->afp", 1j * w[:, None] * g * xl, dc[:, r:], Jl)
-        dh += np.einsum("fj,apj->afp", xl, dJ[:, :, r:])
+        z = du[:, None, :r] - x[None] @ dK - 1j * w[None, :, None] * dc[:, None, :r] * x[None]  # dK symmetric
+        dh = (z.transpose(1, 0, 2) @ lam).transpose(1, 0, 2) + x[None] @ dJ[:, :, :r].transpose(0, 2, 1)
+        Jl, m1 = J[:, r:], J.shape[1] - r
+
+        def outer(a):  # (P, m - r) x (p, m - r) -> (m - r, P p)
+            return (a.T[:, :, None] * Jl.T[:, None, :]).reshape(m1, -1)
+
+        gx = g * xl
+        rest = g @ outer(du[:, r:]) - gx @ outer(st["dk0"][:, r:]) - (1j * w[:, None] * gx) @ outer(dc[:, r:])
+        rest += xl @ dJ[:, :, r:].transpose(2, 0, 1).reshape(m1, -1)
+        dh += rest.reshape(w.size, P, -1).transpose(1, 0, 2)
         return h, dh
 
     # -- the spectrum -----------------------------------------------------------------------

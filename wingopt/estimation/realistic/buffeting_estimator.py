@@ -167,6 +167,11 @@ def buffeting_identify(
     warnings = []
     if not (scr.informative or force):
         out = _static_result(statics, w, scr, f11)
+        if not out.adequate:
+            warnings.append(
+                "the load prior does not make the sensors' mean (chi-square above "
+                f"{ADEQUATE[0]:g} per sensor): the load is the nearest one it allows"
+            )
         warnings.append(
             f"the buffeting does not identify the tension: no resonance above the noise floor near the first loaded "
             f"mode ({scr.ratio:.2f} < {scr.threshold:.2f} within {band[0]:.0f}-{band[1]:.0f} Hz); the prestrain is the "
