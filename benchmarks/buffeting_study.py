@@ -116,9 +116,9 @@ def table(rows: list[dict]) -> str:
     """Markdown table: one line per (case, frames)."""
     head = (
         "| case | frames | n | prestrain err mean / RMS / max (%) | max |z| | post std (%) | lift err mean / RMS / "
-        "max (%) | lift band (%) | max |z_lift| | informative | screen | CPU s |"
+        "max (%) | lift band (%) | max |z_lift| | informative | adequate | screen | CPU s |"
     )
-    lines = [head, "|" + "---|" * 12]
+    lines = [head, "|" + "---|" * 13]
     groups: dict = {}
     for r in rows:
         groups.setdefault((re.sub(r"_s\d+_n\d+$", "", r["record"]), r["frames"]), []).append(r)
@@ -136,12 +136,13 @@ def table(rows: list[dict]) -> str:
             band = f"±{np.mean([r['lift_std'] for r in g]):.3f} N"
         lz = max(abs(r["lift_z"]) for r in g)
         inf = sum(r["informative"] for r in g)
+        ok = sum(r["adequate"] for r in g)
         scr = np.mean([r["screen"] for r in g])
         cpu = np.mean([r["cpu_s"] for r in g])
         lines.append(
             f"| {case} | {frames} | {len(g)} | {e.mean():+.1f} / {np.sqrt(np.mean(e**2)):.1f} / {np.abs(e).max():.1f} "
-            f"| {ez.max():.1f} | {es.mean():.1f} | {lift} | {band} | {lz:.1f} | {inf}/{len(g)} | {scr:.1f} "
-            f"| {cpu:.2f} |"
+            f"| {ez.max():.1f} | {es.mean():.1f} | {lift} | {band} | {lz:.1f} | {inf}/{len(g)} | {ok}/{len(g)} "
+            f"| {scr:.1f} | {cpu:.2f} |"
         )
     return "\n".join(lines)
 

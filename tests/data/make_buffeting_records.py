@@ -58,7 +58,8 @@ def make(name: str, ex: float, ey: float, seed: int) -> Path:
         ),
     )
     print(
-        f"{path.name}: {rec.measurements.count} frames, lift {float(rec.true_lift):.4f} N, {time.process_time() - t0:.0f} s CPU"
+        f"{path.name}: {rec.measurements.count} frames, mean lift {float(rec.true_lift / rec.load_factor[-1]):.4f} N, "
+        f"{time.process_time() - t0:.0f} s CPU"
     )
     return path
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from wingopt.errors import InputError
+from wingopt.errors import InputError, SolverError
 from wingopt.estimation.realistic.buffeting import BuffetingProblem
 from wingopt.estimation.realistic.buffeting_fit import (
     BuffetingFit,
@@ -165,25 +165,39 @@ def buffeting_identify(
     band = (BAND[0] * f11, min(BAND[1] * f11, spectra.nyquist))
     scr = screen(spectra, band)
     warnings = []
-    if not (scr.informative or force):
+    fits = []
+    for (label, sp_, fit, _), wi in zip(statics, w):
+        if wi < KEEP or not (scr.informative or force):
+            continue
+        try:
+            fits.append(
+                (
+                    label.replace("static", "buffeting"),
+                    run(BuffetingProblem(sp_, spectra, aliases), fit.theta, max_iter),
+                    sp_,
+                )
+            )
+        except (InputError, SolverError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            log.info("buffeting fit from the %s solution failed: %s", label, exc)
+            warnings.append(f"the buffeting fit from the {label} solution failed ({exc})")
+    if not fits:
         out = _static_result(statics, w, scr, f11)
         if not out.adequate:
             warnings.append(
                 "the load prior does not make the sensors' mean (chi-square above "
                 f"{ADEQUATE[0]:g} per sensor): the load is the nearest one it allows"
             )
+        why = (
+            f"no resonance above the noise floor near the first loaded mode ({scr.ratio:.2f} < {scr.threshold:.2f} "
+            f"within {band[0]:.0f}-{band[1]:.0f} Hz)"
+            if not (scr.informative or force)
+            else "its fit failed"
+        )
         warnings.append(
-            f"the buffeting does not identify the tension: no resonance above the noise floor near the first loaded "
-            f"mode ({scr.ratio:.2f} < {scr.threshold:.2f} within {band[0]:.0f}-{band[1]:.0f} Hz); the prestrain is the "
-            "prior's and the lift band carries it"
+            f"the buffeting does not identify the tension: {why}; the prestrain is the prior's and the lift band "
+            "carries it"
         )
         return _finish(out, warnings, t0)
-    fits = []
-    for (label, sp_, fit, _), wi in zip(statics, w):
-        if wi < KEEP:
-            continue
-        bp = BuffetingProblem(sp_, spectra, aliases)
-        fits.append((label.replace("static", "buffeting"), run(bp, fit.theta, max_iter), sp_))
     zb = np.array([f.evidence for _, f, _ in fits])
     wb = np.exp(zb - zb.max())
     wb /= wb.sum()
