@@ -1,0 +1,303 @@
+"""The tension from buffeting: the static mean and the fluctuation's spectrum of a steady record, fitted jointly.
+
+A wing in steady flow is loaded by ``(1 + eps(t)) P(x, y)``: the mean pressure (the static fit of
+:mod:`.steady`) times a stationary load factor, the flow's buffeting. Linearised about the static
+state ``q̄`` of the modal FvK model (:class:`~wingopt.membrane.modal.fvk.FvKModal`, every mode of the
+mesh, FvK's cubic stiffness on the lowest ``r``), the sensors' fluctuation is ``eps`` through
+
+    h(w) = J (K_t - w^2 + i w C)^-1 u,    J_i = 2 q̄^T Ĉ_i,   u = Phi^T P (the mean load's modal force)
+
+with the loaded tangent ``K_t = diag(k0) + 3 S(q̄)`` on the cubic block (dense ``r x r``: its
+transfer from the ``2r`` state-space eigenpairs) and ``diag(k0)`` beyond it (uncoupled oscillators),
+and the prestress damping ``C = d diag(gamma/rho h + eta (Tx0 kx + Ty0 ky))``. The loaded first
+frequency depends on the tension *and* the load; the mean fixes the load for a given tension; the two
+together identify the tension. The sampled sensors' cross-spectral matrix (two-sided, units²/Hz) is
+
+    S(f) = sum_{|k| <= aliases} S_eps(f + k fs) h h^H + dt diag(sigma^2),  S_eps = A (1 + (f/fc)^2)^-n
+
+(the forcing's spectrum and the noise floor are unknown). Its fit to the binned periodograms ``Ī_b``
+(:mod:`.spectra`) is Whittle's likelihood ``sum_b n_b [log det S_b + tr(S_b^-1 Ī_b)]``. Fisher scoring
+on it is Gauss–Newton on the residuals ``sqrt(n_b) vec(W_b (Ī_b - S_b(theta)) W_b^H)`` with the weights
+``W_b = chol(S_b)^-1`` frozen at a point: their gradient there is Whittle's score and ``J^T J`` its
+expected information. :class:`BuffetingProblem` is that residual problem (with the static rows of
+:class:`~.steady.SteadyProblem` and the priors) for :func:`~.solver.levenberg_marquardt`; the driver
+(:mod:`.buffeting_fit`) refreezes the weights after every step (iteratively reweighted: the fixed point
+is Whittle's estimate). Every derivative is analytic: the static sensitivities by implicit
+differentiation, the transfer's by ``dh = dJ x + lambda^T (du - (dK_t + i w dC) x)``
+(``x = G u``, ``lambda_i = G J_i^T``; ``G`` is complex symmetric).
+
+Unknowns (scaled, every prior ``N(0, 1)``): the steady problem's (load shapes, free prestrains), the
+log damping factor, and the nuisance ``log A`` (std 5 about a level from the data), ``log fc`` (about
+30 Hz, std ``log 10``), ``n = 2 exp(theta/2)``, ``log sigma_i`` (std 2 about the spectra's floor).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from wingopt.errors import InputError, SolverError
+from wingopt.estimation.realistic.spectra import SpectralData
+from wingopt.estimation.realistic.steady import SteadyProblem
+
+__all__ = ["BuffetingProblem", "NUISANCE"]
+
+log = logging.getLogger(__name__)
+
+NUISANCE = {"log_A": 5.0, "log_fc": float(np.log(10.0)), "order": 0.5, "log_sigma": 2.0}
+"""Prior std of the nuisance unknowns (scaled: ``x = x_ref + std theta``; the order ``n = 2 exp(std theta)``)."""
+
+FC_REF, ORDER_REF = 30.0, 2.0
+"""Prior medians of the forcing spectrum's corner (Hz) and order."""
+
+
+@dataclass(eq=False)
+class BuffetingProblem:
+    """Static mean and Whittle spectrum of a steady record (interface of :func:`levenberg_marquardt`).
+
+    Parameters
+    ----------
+    steady : SteadyProblem
+        The static problem (model, load shapes, sensor means, prior, full-order defect).
+    spectra : SpectralData
+        The record's binned cross-periodograms.
+    aliases : int
+        Aliased copies ``f + k fs``, ``|k| <= aliases``, in the sampled spectrum.
+    log_a_ref : float
+        Prior centre of ``log A`` (set by the start).
+    """
+
+    steady: SteadyProblem
+    spectra: SpectralData
+    aliases: int = 1
+    log_a_ref: float = 0.0
+    _cache: dict = field(default_factory=dict, repr=False)
+    _weights: np.ndarray | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        sp_ = self.steady
+        if self.spectra.p != sp_.data.mean.size:
+            raise InputError(f"buffeting: {self.spectra.p} spectral sensors for {sp_.data.mean.size} means")
+        k = sp_.dim
+        self.i_d, self.i_a, self.i_fc, self.i_n = k, k + 1, k + 2, k + 3
+        self.i_sig = np.arange(k + 4, k + 4 + self.spectra.p)
+        self.n_struct = k + 1  # load shapes, prestrains, damping: through the structure
+        auto = np.real(np.einsum("bii->bi", self.spectra.periodogram))
+        self.log_sigma_ref = 0.5 * np.log(np.maximum(np.quantile(auto, 0.2, axis=0), 1e-300) / self.spectra.dt)
+        self.jacobian_defect = np.zeros((sp_.data.mean.size, sp_.modal.m))
+
+    # -- layout ----------------------------------------------------------------------------
+    @property
+    def dim(self) -> int:
+        return self.steady.dim + 4 + self.spectra.p
+
+    @property
+    def names(self) -> list[str]:
+        sp_ = self.steady
+        c = [f"c{i + 1}" for i in range(sp_.shapes.count)]
+        sig = [f"log_sigma_{i + 1}" for i in range(self.spectra.p)]
+        return c + list(sp_.pars) + ["log_damping", "log_A", "log_fc", "order"] + sig
+
+    @cached_property
+    def prior_matrix(self) -> np.ndarray:
+        R = np.eye(self.dim)
+        k = self.steady.dim
+        R[:k, :k] = self.steady.prior_matrix
+        return R
+
+    def damping(self, theta: np.ndarray) -> float:
+        m, s = self.steady.prior.mean_std("damping")
+        return float(np.exp(m + s * theta[self.i_d]))
+
+    def forcing(self, theta: np.ndarray) -> tuple[float, float, float]:
+        """``(A, fc, n)`` of the forcing spectrum ``A (1 + (f/fc)^2)^-n`` (two-sided, 1/Hz)."""
+        A = float(np.exp(self.log_a_ref + NUISANCE["log_A"] * theta[self.i_a]))
+        fc = float(FC_REF * np.exp(NUISANCE["log_fc"] * theta[self.i_fc]))
+        return A, fc, float(ORDER_REF * np.exp(NUISANCE["order"] * theta[self.i_n]))
+
+    def noise(self, theta: np.ndarray) -> np.ndarray:
+        """Noise std of each sensor."""
+        return np.exp(self.log_sigma_ref + NUISANCE["log_sigma"] * theta[self.i_sig])
+
+    @cached_property
+    def omega(self) -> np.ndarray:
+        """Angular frequencies ``(B, 2 aliases + 1)`` of the bins and their aliases."""
+        ks = np.arange(-self.aliases, self.aliases + 1)
+        return 2 * np.pi * (self.spectra.freq[:, None] + ks[None, :] / self.spectra.dt)
+
+    # -- the structure ----------------------------------------------------------------------
+    def structure(self, theta: np.ndarray) -> dict:
+        """Static state, static outputs and the loaded modal matrices at ``theta``, with their
+        derivatives along the ``n_struct`` structural unknowns."""
+        sp_, fm = self.steady, self.steady.modal
+        K, ne, P = sp_.shapes.count, len(sp_.pars), self.n_struct
+        q, par = sp_.modal_state(theta[: sp_.dim])
+        mat = sp_.model.problem.material
+        C, nu = fm.stiffness_c, mat.poisson_ratio
+        ex, ey = par.eps0_x, par.eps0_y
+        k0 = fm.omega(ex, ey) ** 2
+        d = self.damping(theta)
+        tx0, ty0 = fm.tensions(ex, ey)
+        cb = mat.viscous / mat.areal_density + mat.kelvin_voigt * (tx0 * fm.kx + ty0 * fm.ky)
+        du = np.zeros((P, fm.m))
+        dk0 = np.zeros((P, fm.m))
+        dc = np.zeros((P, fm.m))
+        du[:K] = sp_.forces.T
+        for i, name in enumerate(sp_.pars):  # d/d prestrain of the tensions' stiffness and damping
+            s = sp_.prior.mean_std(name)[1]
+            gx, gy = (C, C * nu) if name == "prestrain_x" else (C * nu, C)
+            dk0[K + i] = s * (gx * fm.kx + gy * fm.ky)
+            dc[K + i] = d * mat.kelvin_voigt * dk0[K + i]
+        dc[K + ne] = sp_.prior.mean_std("damping")[1] * d * cb
+        # static sensitivities: F_q dq = du - dk0 q (implicit differentiation of the equilibrium)
+        dq = fm.solve_tangent(q, par, (du - dk0 * q).T).T  # (P, m)
+        Cq = fm.sensor_products(q[None])[0]  # (p, m)
+        r = fm.cubic_modes
+        a, da = q[:r], dq[:, :r]
+        Sq = ((a[:, None] * a[None, :]).ravel() @ fm.tensor).reshape(r, r)
+        sym = a[None, :, None] * da[:, None, :]
+        dS = ((sym + np.swapaxes(sym, 1, 2)).reshape(P, r * r) @ fm.tensor).reshape(P, r, r)
+        dK = 3.0 * dS
+        dK[:, np.arange(r), np.arange(r)] += dk0[:, :r]
+        return {
+            "q": q,
+            "s": np.einsum("pm,m->p", Cq, q) + sp_.defect,
+            "ds": 2.0 * Cq @ dq.T,  # (p, P)
+            "J": 2.0 * Cq + self.jacobian_defect,
+            "dJ": 2.0 * (fm.sensor_matrices.reshape(-1, fm.m) @ dq.T).reshape(-1, fm.m, P).transpose(2, 0, 1),
+            "Kc": np.diag(k0[:r]) + 3.0 * Sq,
+            "dK": dK,
+            "k0": k0,
+            "dk0": dk0,
+            "c": d * cb,
+            "dc": dc,
+            "u": sp_.forces @ theta[:K],
+            "du": du,
+        }
+
+    def transfer(self, st: dict, w: np.ndarray, derivatives: bool = True):
+        """Transfer ``h`` ``(F, p)`` from the load factor to the sensors at angular frequencies ``w``
+        ``(F,)``, and ``dh`` ``(P, F, p)`` along the structural unknowns."""
+        r = self.steady.modal.cubic_modes
+        Kc, cc, u, J = st["Kc"], st["c"][:r], st["u"], st["J"]
+        # cubic block: G(w) = Vq diag(1/(i w - mu)) Wv from the state-space eigenpairs
+        A = np.zeros((2 * r, 2 * r))
+        A[:r, r:] = np.eye(r)
+        A[r:, :r] = -Kc
+        A[r:, r:] = -np.diag(cc)
+        mu, V = np.linalg.eig(A)
+        Wv = np.linalg.inv(V)[:, r:]
+        Vq = V[:r]
+        rho = 1.0 / (1j * w[:, None] - mu[None, :])  # (F, 2r)
+        x = (rho * (Wv @ u[:r])) @ Vq.T  # G u (F, r)
+        # linear modes beyond the block: uncoupled oscillators
+        g = 1.0 / (st["k0"][None, r:] - w[:, None] ** 2 + 1j * w[:, None] * st["c"][None, r:])  # (F, m - r)
+        xl = g * u[None, r:]
+        h = x @ J[:, :r].T + xl @ J[:, r:].T
+        if not derivatives:
+            return h, None
+        # dh = dJ x + lambda^T (du - dK x - i w dC x), lambda = G J^T (G symmetric); all products as GEMMs
+        P = st["du"].shape[0]
+        lam = Vq @ (rho[:, :, None] * (Wv @ J[:, :r].T)[None])  # (F, r, p)
+        du, dK, dc, dJ = st["du"], st["dK"], st["dc"], st["dJ"]
+        z = du[:, None, :r] - x[None] @ dK - 1j * w[None, :, None] * dc[:, None, :r] * x[None]  # dK symmetric
+        dh = (z.transpose(1, 0, 2) @ lam).transpose(1, 0, 2) + x[None] @ dJ[:, :, :r].transpose(0, 2, 1)
+        Jl, m1 = J[:, r:], J.shape[1] - r
+
+        def outer(a):  # (P, m - r) x (p, m - r) -> (m - r, P p)
+            return (a.T[:, :, None] * Jl.T[:, None, :]).reshape(m1, -1)
+
+        gx = g * xl
+        rest = g @ outer(du[:, r:]) - gx @ outer(st["dk0"][:, r:]) - (1j * w[:, None] * gx) @ outer(dc[:, r:])
+        rest += xl @ dJ[:, :, r:].transpose(2, 0, 1).reshape(m1, -1)
+        dh += rest.reshape(w.size, P, -1).transpose(1, 0, 2)
+        return h, dh
+
+    # -- the spectrum -----------------------------------------------------------------------
+    def evaluate(self, theta: np.ndarray) -> dict:
+        """Static outputs, model spectra ``S`` ``(B, p, p)`` and their derivatives ``dS`` ``(dim, B, p, p)``
+        (cached: the driver asks for the same point again after refreezing the weights)."""
+        key = theta.tobytes()
+        if key in self._cache:
+            return self._cache[key]
+        st = self.structure(theta)
+        B, p = self.spectra.bins, self.spectra.p
+        w = self.omega.ravel()
+        h, dh = self.transfer(st, w)
+        nk = self.omega.shape[1]
+        h, dh = h.reshape(B, nk, p), dh.reshape(-1, B, nk, p)
+        A, fc, n = self.forcing(theta)
+        x = (w.reshape(B, nk) / (2 * np.pi * fc)) ** 2
+        se = A * (1.0 + x) ** (-n)
+        hh = np.einsum("bk,bkp,bkq->bkpq", se, h, h.conj())
+        signal = hh.sum(axis=1)
+        sig = self.noise(theta)
+        S = signal + np.eye(p)[None] * (self.spectra.dt * sig**2)[None, :, None]
+        dS = np.zeros((self.dim, B, p, p), dtype=complex)
+        cross = np.einsum("bk,abkp,bkq->abpq", se, dh, h.conj())
+        dS[: self.n_struct] = cross + np.conj(np.swapaxes(cross, 2, 3))
+        dS[self.i_a] = NUISANCE["log_A"] * signal
+        dS[self.i_fc] = NUISANCE["log_fc"] * np.einsum("bk,bkpq->bpq", 2 * n * x / (1 + x), hh)
+        dS[self.i_n] = -NUISANCE["order"] * n * np.einsum("bk,bkpq->bpq", np.log1p(x), hh)
+        for i, j in enumerate(self.i_sig):
+            dS[j, :, i, i] = 2 * NUISANCE["log_sigma"] * self.spectra.dt * sig[i] ** 2
+        ds = np.zeros((p, self.dim))
+        ds[:, : self.n_struct] = st["ds"]
+        out = {"S": S, "dS": dS, "s": st["s"], "ds": ds, "structure": st}
+        if len(self._cache) >= 4:
+            self._cache.pop(next(iter(self._cache)))
+        self._cache[key] = out
+        return out
+
+    def freeze(self, theta: np.ndarray) -> None:
+        """Freeze the Whittle weights ``W_b = chol(S_b(theta))^-1``."""
+        S = self.evaluate(np.asarray(theta, dtype=float))["S"]
+        try:
+            L = np.linalg.cholesky(S)
+        except np.linalg.LinAlgError as exc:
+            raise SolverError("buffeting fit", "model spectrum not positive definite", "check the data") from exc
+        self._weights = np.linalg.inv(L)
+
+    def whittle(self, theta: np.ndarray) -> float:
+        """Whittle's negative log-likelihood ``sum_b n_b [log det S_b + tr(S_b^-1 Ī_b)]``."""
+        S = self.evaluate(np.asarray(theta, dtype=float))["S"]
+        L = np.linalg.cholesky(S)
+        logdet = 2.0 * np.sum(np.log(np.real(np.einsum("bii->bi", L))), axis=1)
+        tr = np.real(np.einsum("bii->b", np.linalg.solve(S, self.spectra.periodogram)))
+        return float(self.spectra.weights @ (logdet + tr))
+
+    def _vec(self, E: np.ndarray) -> np.ndarray:
+        """Real rows of Hermitian matrices ``(..., p, p)``: diagonal, and sqrt2 (Re, Im) of the upper part."""
+        p = E.shape[-1]
+        iu = np.triu_indices(p, 1)
+        dg = np.real(np.einsum("...ii->...i", E))
+        up = E[..., iu[0], iu[1]]
+        return np.concatenate([dg, np.sqrt(2) * up.real, np.sqrt(2) * up.imag], axis=-1)
+
+    # -- the residual problem ---------------------------------------------------------------
+    def residuals(self, theta: np.ndarray, jacobian: bool = False):
+        """Data rows (static mean, then the frozen-weight Whittle rows) and prior rows; with
+        ``jacobian`` their Jacobians (the weights must have been frozen)."""
+        theta = np.asarray(theta, dtype=float)
+        rp = self.prior_matrix @ theta
+        if self._weights is None:
+            raise SolverError("buffeting fit", "weights not frozen", "call freeze(theta) first")
+        try:
+            ev = self.evaluate(theta)
+        except (InputError, ArithmeticError, SolverError, np.linalg.LinAlgError) as exc:
+            log.debug("buffeting trial rejected: %s", exc)
+            rd = np.full(self.spectra.p + self.spectra.bins * self.spectra.p**2, np.inf)
+            return (rd, rp) if not jacobian else (rd, rp, None, None)
+        W, tau = self._weights, self.steady.tau
+        sw = np.sqrt(self.spectra.weights)
+        E = W @ (self.spectra.periodogram - ev["S"]) @ np.conj(np.swapaxes(W, 1, 2))
+        rd = np.concatenate([(self.steady.data.mean - ev["s"]) / tau, (sw[:, None] * self._vec(E)).ravel()])
+        if not jacobian:
+            return rd, rp
+        dE = W[None] @ ev["dS"] @ np.conj(np.swapaxes(W, 1, 2))[None]
+        Jw = -(sw[None, :, None] * self._vec(dE)).reshape(self.dim, -1).T
+        Jd = np.vstack([-ev["ds"] / tau[:, None], Jw])
+        return rd, rp, Jd, self.prior_matrix
