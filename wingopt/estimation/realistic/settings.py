@@ -61,6 +61,8 @@ class RealisticSettings:
         :class:`~wingopt.membrane.modal.fvk.FvKModal`, built on the estimator's mesh).
     cubic_modes : int
         Modes with FvK's cubic stiffness (``membrane_model="fvk"``).
+    spectrum_bin_hz : float
+        Width of the spectral bins of a steady record's buffeting fit (Hz; :mod:`.spectra`).
     """
 
     modes: int = 48
@@ -84,6 +86,7 @@ class RealisticSettings:
     stretch_gain: float = 1.0
     membrane_model: str = "berger"
     cubic_modes: int = 16
+    spectrum_bin_hz: float = 2.0
 
     def __post_init__(self) -> None:
         if self.membrane_model not in MEMBRANE_MODELS:
@@ -94,6 +97,8 @@ class RealisticSettings:
             raise InputError(f"record = {self.record!r}: expected auto, transient or steady")
         if self.frame not in ("auto", "off"):
             raise InputError(f"frame = {self.frame!r}: expected auto or off")
+        if not (self.spectrum_bin_hz > 0):
+            raise InputError(f"spectrum_bin_hz = {self.spectrum_bin_hz!r}: expected a positive width (Hz)")
         if self.load_model not in LOAD_MODELS:
             raise InputError(f"load_model = {self.load_model!r}: expected one of {', '.join(LOAD_MODELS)}")
 

@@ -1,12 +1,14 @@
-"""The whole-record estimator for steady records: static fits weighed by evidence, and the lift history.
+"""The whole-record estimator for steady records: a loaded wing in steady flow, no transient.
 
 :func:`steady_identify` fits the sensors' mean with the static FvK membrane (:mod:`.steady`) under
-two load priors (zero on the frame; acting up to it) and from two lobe patterns (the sensors cannot
-tell a load's lobes' signs), weighs the fits by their Laplace evidence and reports the mixture's
-lift and band. The lift history is the steady lift times the record's relative load fluctuation,
-read off the sensors linearised about the static shape (``ds_i / s_i = alpha_i d(load) / load``).
-Whether the tension is identified is said: without a calibration or another source the record's
-band is set by the prestrain prior, and a warning says so.
+the load prior of ``[identification] pressure_prior`` and from both lobe patterns (the sensors see
+the slopes squared); when the flow's buffeting shows the loaded resonance it refits every answer
+with the mean and the fluctuation's spectrum together (:mod:`.buffeting`), which identifies the
+tension and tells the lobe patterns apart. The answers are weighed by their Laplace evidence and
+the lift is their mixture. The lift history is the steady lift times the record's relative load
+fluctuation, read off the sensors linearised about the static shape. What the record cannot tell
+is said: an unidentified tension (no calibration, no resonance), unresolved lobes or edges, a load
+prior that cannot make the mean (an aerodynamic prior then gives way to the frame prior).
 """
 
 from __future__ import annotations
@@ -17,11 +19,27 @@ import time
 import numpy as np
 import scipy.sparse.linalg as spla
 
+from wingopt.errors import InputError
+from wingopt.estimation.realistic.buffeting_fit import UNIDENTIFIED, mean_prestrain
 from wingopt.estimation.realistic.frame_check import FRAME_SHAPES
 from wingopt.estimation.realistic.load_model import LoadShapes
 from wingopt.estimation.realistic.record_problem import ParameterPrior
 from wingopt.estimation.realistic.settings import RealisticSettings
-from wingopt.estimation.realistic.steady import SteadyProblem, evidence, fit_steady, starts, steady_data
+from wingopt.estimation.realistic.spectra import spectral_data
+from wingopt.estimation.realistic.steady import SteadyProblem, steady_data
+from wingopt.estimation.realistic.steady_solutions import (
+    ADEQUATE,
+    FIRST_ITER,
+    KEEP,
+    Solution,
+    corrected,
+    mixture,
+    resonance,
+    resumed,
+    static_solutions,
+    try_buffeted,
+    weights,
+)
 from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements import Measurements
 from wingopt.membrane.model import MembraneModel
@@ -30,15 +48,8 @@ __all__ = ["steady_identify", "UNIDENTIFIED", "is_steady"]
 
 log = logging.getLogger(__name__)
 
-UNIDENTIFIED = 0.7
-"""The tension is called unidentified when the posterior std of the first mode's prestrain
-combination is above this fraction of its prior's."""
-
-LIFT_UNRESOLVED = 0.3
-"""The lift is called unresolved when its posterior std is above this fraction of its prior's."""
-
-SAME = 1e-3
-"""Two fits whose lifts and costs agree to this (relative) are one solution, counted once."""
+EDGES = ("x0", "x1")
+"""Where the leading edge may be when the problem file does not say: ``x = 0`` or ``x = W``."""
 
 
 def is_steady(values: np.ndarray, head: float = 0.1, tolerance: float = 0.1, ringing: float = 3.0) -> bool:
@@ -57,18 +68,10 @@ def is_steady(values: np.ndarray, head: float = 0.1, tolerance: float = 0.1, rin
     return bool(np.all(np.abs(first - last) <= tolerance * scale) and np.all(stationary))
 
 
-def _mode1_weights(problem) -> np.ndarray:
-    """The first mode's prestrain combination: its stiffness ``C((ex + nu ey) kx + (ey + nu ex) ky)``."""
-    nu = problem.material.poisson_ratio
-    kx, ky = (np.pi / problem.width) ** 2, (np.pi / problem.height) ** 2
-    w = np.array([kx + nu * ky, ky + nu * kx])
-    return w / w.sum()
-
-
-def _fluctuation(model: MembraneModel, sp_: SteadyProblem, fit, meas: Measurements, data) -> np.ndarray:
+def _fluctuation(model: MembraneModel, sp_: SteadyProblem, theta, meas: Measurements, data) -> np.ndarray:
     """The relative load fluctuation ``eps(t)`` read off the sensors linearised about the static state."""
-    fvk, sol = sp_.equilibrium(fit.theta)
-    c, _ = sp_.physical(fit.theta)
+    fvk, sol = sp_.equilibrium(theta)
+    c, _ = sp_.physical(theta)
     K = fvk.tangent(sol.z, sol.u, sol.v).tocsc()
     rhs = np.zeros(3 * fvk.n)
     rhs[: fvk.n] = sp_.shapes.forces @ c
@@ -94,43 +97,35 @@ def steady_identify(
     p0 = problem.identification.initial_load if initial_load is None else float(initial_load)
     prior = ParameterPrior.from_problem(problem, s.free, s.prestrain_rel, s.damping_rel)
     data = steady_data(meas.values)
-    priors = _priors(model, p0, s)
-    found = []
-    for label, shapes in priors:
-        for k, th in enumerate(starts(SteadyProblem(model, shapes, data, prior), np.sign(p0))):
-            sp_ = SteadyProblem(model, shapes, data, prior)
-            fit = fit_steady(sp_, [th], s.max_iter)
-            lift = sp_.lift(fit.theta)
-            if np.sign(lift) * np.sign(p0) < 0:  # the whole load and the state flip together: the prior's sign
-                fit = type(fit)(**{**fit.__dict__, "theta": _negated(sp_, fit.theta)})
-                lift = -lift
-            dup = any(abs(lift - f[3]) <= SAME * abs(lift) + 1e-12 and abs(fit.cost - f[2].cost) <= SAME * f[2].cost
-                      for f in found if f[0].split(",")[0] == label)  # fmt: skip
-            if not dup:
-                found.append((label + ("" if k == 0 else ", other lobes"), sp_, fit, lift))
-    z = np.array([evidence(f[2]) for f in found])
-    w = np.exp(z - z.max())
-    w /= w.sum()
-    g = [f[1].lift_gradient() for f in found]
-    stds = np.array([float(np.sqrt(gi @ f[2].covariance @ gi)) for gi, f in zip(g, found)])
-    lifts = np.array([f[3] for f in found])
-    mean = float(w @ lifts)
-    std = float(np.sqrt(max(w @ (stds**2 + lifts**2) - mean**2, 0.0)))
-    best = int(np.argmax(w))
-    label, sp_, fit, _ = found[best]
-    warnings = _warnings(sp_, fit, prior, problem, found, w)
-    eps = _fluctuation(model, sp_, fit, meas, data)
-    c, par = sp_.physical(fit.theta)
-    coef = sp_.shapes.coefficients(c)
+    notes: list[str] = []
+    try:
+        spectra = spectral_data(meas.t, meas.values, s.spectrum_bin_hz)
+    except InputError as exc:  # uneven times, too many dropped frames: the mean still holds
+        spectra = None
+        notes.append(f"the record's spectrum is not used ({exc})")
+    kind = "interior" if s.frame == "off" else problem.identification.pressure_prior
+    sols, w, scr, f11 = _solve(model, _priors(model, p0, s, kind), data, spectra, prior, p0, s, notes)
+    if kind == "aerodynamic" and not sols[int(np.argmax(w))].adequate:
+        notes.append(
+            "the aerodynamic load prior cannot make the sensors' mean: the answer is the frame prior's (a load "
+            "that acts up to the frame)"
+        )
+        sols, w, scr, f11 = _solve(model, _priors(model, p0, s, "frame"), data, spectra, prior, p0, s, notes)
+    mean, std = mixture(w, sols)
+    best = sols[int(np.argmax(w))]
+    sp_, theta = best.problem, best.theta
+    warnings = notes + _warnings(best, sols, w, scr, problem)
+    eps = _fluctuation(model, sp_, theta, meas, data)
+    c, _ = sp_.physical(theta)
     amp = 1.0 + np.nan_to_num(eps, nan=0.0)
-    fvk, sol = sp_.equilibrium(fit.theta)
-    info = _info(sp_, fit, found, w, z, stds, data, warnings, label)
+    _, state = sp_.equilibrium(theta)
+    info = _info(best, sols, w, data, scr, f11, warnings)
     info["steady_lift_N"], info["steady_lift_std_N"] = mean, std
     return IdentificationResult(
         method="steady",
         t=meas.t,
-        load=amp[:, None] * coef[None],
-        deflection=np.broadcast_to(sol.z, (meas.count, sol.z.size)),
+        load=amp[:, None] * sp_.shapes.coefficients(c)[None],
+        deflection=np.broadcast_to(state.z, (meas.count, state.z.size)),
         lift=mean * amp,
         lift_std=std * amp,
         regularization=float(s.kappa),
@@ -140,82 +135,76 @@ def steady_identify(
     )
 
 
-def _priors(model: MembraneModel, p0: float, s) -> list[tuple[str, LoadShapes]]:
-    """The load priors of a steady record (``[identification] pressure_prior``).
+def _solve(model, priors, data, spectra, prior, p0, s, notes):
+    """Static solutions under each prior, the resonance screen, the buffeting (or full-order) refits."""
+    sign = float(np.sign(p0) or 1.0)
+    sols = [
+        x for label, shapes in priors for x in static_solutions(model, label, shapes, data, prior, sign, s.max_iter)
+    ]
+    w = weights(sols)
+    kept = [x for x, wi in zip(sols, w) if wi >= KEEP]
+    scr, f11 = resonance(sols[int(np.argmax(w))], spectra) if spectra is not None else (None, float("nan"))
+    if scr is not None and scr.informative:
+        refits = [try_buffeted(x, spectra, 1, min(FIRST_ITER, s.max_iter)) for x in kept]
+        spectral = [x for x, why in refits if why is None]
+        notes.extend(why for _, why in refits if why is not None)
+        if spectral:  # evidences compare within one likelihood: the spectral fits only
+            top = int(np.argmax([x.log_evidence for x in spectral]))
+            spectral[top] = resumed(spectral[top], s.max_iter)
+        sols = spectral or [x for x, _ in refits]
+    else:
+        sols = [corrected(x, s.max_iter) for x in kept]
+    return sols, weights(sols), scr, f11
+
+
+def _priors(model: MembraneModel, p0: float, s, kind: str) -> list[tuple[str, LoadShapes]]:
+    """The load priors of a steady record (``kind``: ``[identification] pressure_prior``).
 
     A steady record's four means cannot tell a load that vanishes on the frame from one that acts up
     to it (a pressure near the frame hardly deflects the membrane, yet carries lift), and evidence
     then favours the narrower prior whatever the truth (measured: a uniform pressure read 42 % low at
     15 bands under the interior prior). So ``auto`` takes the prior that holds both, and the band
-    carries what the means leave open; ``aerodynamic`` is the user's assumption of a thin-airfoil load.
+    carries what the record leaves open; ``aerodynamic`` is the user's assumption of a thin-airfoil load.
     """
-    ident = model.problem.identification
-    kind = "interior" if s.frame == "off" else ident.pressure_prior
     if kind == "interior":
         return [("interior", LoadShapes.build(model, s.shapes, p0, s.kappa, s.prior_power))]
     if kind == "aerodynamic":
-        edges = (ident.leading_edge,) if ident.leading_edge else ("x0", "x1")
-        return [(f"aerodynamic {e}", LoadShapes.aerodynamic(model, p0, e, s.kappa)) for e in edges]
+        le = model.problem.identification.leading_edge
+        return [(f"aerodynamic {e}", LoadShapes.aerodynamic(model, p0, e, s.kappa)) for e in ((le,) if le else EDGES)]
     return [("frame", LoadShapes.build(model, s.shapes, p0, s.kappa, s.prior_power, FRAME_SHAPES))]
 
 
-def _negated(sp_: SteadyProblem, theta: np.ndarray) -> np.ndarray:
-    th = theta.copy()
-    th[: sp_.shapes.count] *= -1
-    return th
-
-
-def _tension_ratio(sp_: SteadyProblem, fit, prior: ParameterPrior, problem) -> float | None:
-    """Posterior / prior std of the first mode's prestrain combination (``None``: none is free)."""
-    if len(sp_.pars) < 1:
-        return None
-    k = sp_.shapes.count
-    wts = _mode1_weights(problem)
-    idx = {"prestrain_x": 0, "prestrain_y": 1}
-    a = np.zeros(len(sp_.pars))
-    for i, name in enumerate(sp_.pars):
-        a[i] = wts[idx[name]] * prior.mean_std(name)[1]
-    post = a @ fit.covariance[k:, k:] @ a
-    R = np.linalg.inv(sp_.prior_matrix[k:, k:].T @ sp_.prior_matrix[k:, k:])
-    return float(np.sqrt(post / (a @ R @ a)))
-
-
-def _lift_resolution(sp_: SteadyProblem, fit) -> float:
-    """Posterior / prior std of the lift (the load shapes only): near 1, the prior sets the lift."""
-    g = sp_.lift_gradient()
-    prior = float(np.linalg.norm(g))
-    return float(np.sqrt(g @ fit.covariance @ g)) / max(prior, 1e-300)
-
-
-def _warnings(sp_, fit, prior, problem, found, w) -> list[str]:
+def _warnings(best: Solution, sols: list[Solution], w: np.ndarray, scr, problem) -> list[str]:
     out = []
-    resolved = _lift_resolution(sp_, fit)
-    if resolved > LIFT_UNRESOLVED:
-        out.append(
-            f"the sensors' means do not resolve how the pressure is spread (near the frame it carries lift but "
-            f"hardly deflects the membrane): the lift's band is {resolved:.0%} of its prior's; a record whose "
-            "buffeting identifies the shape, DIC frames, or a declared aerodynamic load ([identification] "
-            "pressure_prior = 'aerodynamic', leading_edge) narrow it"
-        )
-    ratio = _tension_ratio(sp_, fit, prior, problem)
     calibrated = problem.identification.prestrain_std is not None
-    if ratio is not None and ratio > UNIDENTIFIED and not calibrated:
-        source = "the problem file"
+    if best.buffeting is None and not calibrated and best.tension_ratio > UNIDENTIFIED:
+        why = "no resonance above the noise floor near the first loaded mode" if scr is not None else "no spectrum"
         out.append(
-            f"the record does not identify the tension (a steady record: its prestrain posterior is {ratio:.0%} of "
-            f"the prior from {source}): the lift scales with the tension, and its band is the prior's; a "
+            f"the record does not identify the tension ({why}; its prestrain posterior is {best.tension_ratio:.0%} "
+            "of the problem file's prior): the lift scales with the tension, and its band is the prior's; a "
             "calibration record (wingopt calibrate) identifies it"
         )
-    labels = {f[0].split(",")[0] for f, wi in zip(found, w) if wi > 0.05}
-    if "interior" in labels and len(labels) > 1:
-        out.append("the sensors do not tell whether the pressure reaches the frame: the lift and its band mix both")
-    if {"aerodynamic x0", "aerodynamic x1"} <= labels:
+    elif best.buffeting is not None and not calibrated and best.tension_ratio > UNIDENTIFIED:
+        out.append(
+            f"the buffeting does not identify the tension (its posterior is {best.tension_ratio:.0%} of the prior's): "
+            "the lift band carries the prior's tension"
+        )
+    if best.static_chi2 > ADEQUATE[0]:
+        out.append(
+            f"the load prior cannot make the sensors' mean (chi-square {best.static_chi2:.1f} per sensor): the load is "
+            "the nearest one it allows"
+        )
+    if best.spectral_chi2 > ADEQUATE[1]:
+        out.append(
+            f"the model spectrum does not fit the record's (residual mean square {best.spectral_chi2:.2f}, expected 1)"
+        )
+    heavy = [x.label for x, wi in zip(sols, w) if wi > KEEP]
+    if {"aerodynamic x0", "aerodynamic x1"} <= {h.split(",")[0] for h in heavy}:
         out.append(
             "the sensors do not tell which edge is the leading edge: the lift and its band mix both; declare it "
             "([identification] leading_edge = 'x0' or 'x1')"
         )
-    lobes = [f for f, wi in zip(found, w) if wi > 0.05 and "other lobes" in f[0]]
-    if lobes and any(wi > 0.05 and "other lobes" not in f[0] for f, wi in zip(found, w)):
+    if any("other lobes" in h for h in heavy) and any("other lobes" not in h for h in heavy):
         out.append(
             "the sensors do not tell the load's lobe signs apart (they see the slopes squared): the band spans "
             "both patterns"
@@ -223,38 +212,52 @@ def _warnings(sp_, fit, prior, problem, found, w) -> list[str]:
     return out
 
 
-def _info(sp_, fit, found, w, z, stds, data, warnings, label) -> dict:
-    c, par = sp_.physical(fit.theta)
+def _info(best: Solution, sols, w, data, scr, f11: float, warnings: list[str]) -> dict:
+    sp_ = best.problem
+    calibrated = sp_.model.problem.identification.prestrain_std is not None
+    _, par = sp_.physical(best.theta)
     k = sp_.shapes.count
-    cov = fit.covariance
+    cov = best.covariance
     std = {n: float(sp_.prior.mean_std(n)[1] * np.sqrt(cov[k + i, k + i])) for i, n in enumerate(sp_.pars)}
-    dof = max(data.mean.size - fit.effective_parameters, 1.0)
-    chi2 = fit.data_cost / dof
+    bf = best.buffeting
+    em, em_std = mean_prestrain(sp_, best.theta, cov)
+    damping = (bf.damping, bf.damping_std) if bf is not None else (float(sp_.prior.damping), 0.0)
     return {
-        "backend": "steady record: static FvK (full order) fits weighed by evidence",
+        "backend": "steady record: static FvK fits of the mean"
+        + (" and the buffeting's spectrum (Whittle)" if bf is not None else "")
+        + ", weighed by evidence",
         "model": "nonlinear (FvK, static, full order)",
         "record": "steady",
         "solutions": [
             {
-                "prior": f[0],
-                "lift_N": float(f[3]),
-                "lift_std_N": float(sd),
-                "log_evidence": float(zi),
+                "prior": x.label,
+                "lift_N": x.lift,
+                "lift_std_N": x.lift_std,
+                "log_evidence": x.log_evidence,
                 "weight": float(wi),
+                "buffeting": x.buffeting is not None,
             }
-            for f, sd, zi, wi in zip(found, stds, z, w.tolist())
+            for x, wi in zip(sols, w.tolist())
         ],
-        "chosen": label,
-        "parameters": {"prestrain_x": par.eps0_x, "prestrain_y": par.eps0_y, "damping": float(sp_.prior.damping)},
-        "parameters_std": {**{"prestrain_x": 0.0, "prestrain_y": 0.0, "damping": 0.0}, **std},
+        "chosen": best.label,
+        "tension": {
+            "source": "buffeting" if bf is not None and bf.informative else ("calibration" if calibrated else "prior"),
+            "posterior_over_prior": best.tension_ratio,
+            "mean_prestrain": em,
+            "mean_prestrain_std": em_std,
+            "loaded_f11_hz": bf.f11_hz if bf is not None else f11,
+            "screen": None if scr is None else {"ratio": scr.ratio, "threshold": scr.threshold, "peak_hz": scr.peak_hz},
+        },
+        "parameters": {"prestrain_x": par.eps0_x, "prestrain_y": par.eps0_y, "damping": damping[0]},
+        "parameters_std": {**{"prestrain_x": 0.0, "prestrain_y": 0.0, "damping": damping[1]}, **std},
         "sensor_mean": data.mean.tolist(),
-        "sensor_fit": sp_.outputs(fit.theta).tolist(),
+        "sensor_fit": sp_.outputs(best.theta).tolist(),
         "sensor_mean_std": data.std_error.tolist(),
         "fluctuation_rms": (data.fluctuation / np.abs(data.mean)).tolist(),
-        "iterations": fit.iterations,
-        "converged": fit.converged,
-        "adequacy": {"chi2_per_datum": float(chi2), "data": int(data.mean.size)},
-        "model_adequate": bool(chi2 < 4.0),
+        "iterations": bf.iterations if bf is not None else best.fit.iterations,
+        "converged": bf.converged if bf is not None else best.fit.converged,
+        "adequacy": {"chi2_per_datum": best.static_chi2, "spectral_chi2": best.spectral_chi2, "data": data.mean.size},
+        "model_adequate": best.adequate,
         "warnings": warnings,
         "dropped": [],
     }

@@ -1,23 +1,27 @@
-"""The tension and the lift from buffeting alone: accuracy and CPU on simulated tunnel records.
+"""Steady tunnel records: the lift and the tension from the sensors alone, accuracy and CPU.
 
 Each record is a SYNTHETIC steady tunnel record with its truth: the full-order FvK membrane on a
 49x25 mesh (the estimator's is 25x13) under a tunnel pressure times a buffeting load factor, clean
 sensor outputs at 300 Hz (``.npz`` with ``t``, ``outputs``, ``params`` = [e0x, e0y, damping, ...],
 ``lift_mean``; names ``LOAD_e<ex>_<ey>_d<damping>_o<order>_fc<corner>_r<rms>_s<seed>_n<frames>.npz``).
 The study adds 2 % noise (of each sensor's peak, seed 100 + buffeting seed) and drops 1 % of the
-frames, keeps the first ``--frames`` frames, and runs :func:`buffeting_identify` with the
-aerodynamic load shapes (leading edge ``x1`` for ``TE`` records, ``x0`` otherwise) and the problem
-file's prior (prestrain 0.05 ± 20 %, damping factor 1, log-std log 2). Reported per case: the mean
-prestrain's error, its ``|z|`` and posterior std, the lift's error against the true mean lift, its
-band and ``|z|``, the informative flag, the screen's ratio and CPU per fit.
+frames, keeps the first ``--frames`` frames, and runs the steady estimator
+(:func:`~wingopt.estimation.realistic.steady_estimator.steady_identify`, what ``wingopt identify``
+runs on a steady record) with ``[identification] pressure_prior = --prior`` (``auto``: a load that
+may act up to the frame; ``aerodynamic``: thin-airfoil shapes, leading edge ``x1`` for ``TE``
+records, ``x0`` otherwise) and the problem file's prior (prestrain 0.05 ± 20 %, damping factor 1).
+Reported per case: the mean prestrain's error, its ``|z|`` and posterior std, the lift's error
+against the true mean lift, its band and ``|z|``, whether the buffeting identified the tension,
+adequacy, the screen's ratio and CPU per fit (warm: the modal model is built once).
 
-    python benchmarks/buffeting_study.py --records DIR --cases 'LE_e0.0[456]_0.0[456]_d1_o2_fc30_r0.03' \\
-        --seeds 0 1 2 3 4 --frames 450 1400 --out study.jsonl
+    python benchmarks/tunnel_study.py --records DIR --cases 'LE_e0.0[456]_0.0[456]_d1_o2_fc30_r0.03' \\
+        --seeds 0 1 2 3 4 --frames 450 1400 --prior auto --out study.jsonl
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import glob
 import json
 import logging
@@ -28,9 +32,8 @@ import time
 
 import numpy as np
 
-from wingopt.estimation.realistic.buffeting_estimator import buffeting_identify
-from wingopt.estimation.realistic.buffeting_fit import full_order_frequencies, modal_frequencies
-from wingopt.estimation.realistic.load_model import LoadShapes
+from wingopt.estimation.realistic.settings import RealisticSettings
+from wingopt.estimation.realistic.steady_estimator import steady_identify
 from wingopt.measurements import Measurements
 from wingopt.membrane import MembraneModel, add_noise
 from wingopt.problem import load_problem
@@ -64,51 +67,46 @@ def noisy(path: str, frames: int, seed: int, noise: float = 0.02, drop: float = 
     return Measurements(d["t"][:frames], y, ("S1", "S2", "S3", "S4")), truth
 
 
-def one(model, path: str, frames: int, force: bool, check: bool) -> dict:
+def one(base, path: str, frames: int, prior: str, bin_hz: float) -> dict:
     name = os.path.basename(path)[:-4]
     seed = int(re.search(r"_s(\d+)_n", name).group(1))
     meas, truth = noisy(path, frames, seed)
-    shapes = LoadShapes.aerodynamic(model, 200.0, "x1" if name.startswith("TE") else "x0")
+    ident = dataclasses.replace(
+        base.problem.identification, pressure_prior=prior, leading_edge="x1" if name.startswith("TE") else "x0"
+    )
+    model = dataclasses.replace(base, problem=dataclasses.replace(base.problem, identification=ident))
     t0 = time.process_time()
-    r = buffeting_identify(model, meas, shapes, force=force)
+    res = steady_identify(model, meas, RealisticSettings(membrane_model="fvk", spectrum_bin_hz=bin_hz))
     cpu = time.process_time() - t0
+    info, tension = res.info, res.info["tension"]
+    lift, lift_std = res.reported_lift
     em = float(np.mean(truth["prestrain"]))
     L = truth["lift"]
     out = {
         "record": name,
         "frames": meas.count,
+        "prior": prior,
+        "bin_hz": bin_hz,
         "truth": truth,
-        "prestrain": list(r.prestrain),
-        "prestrain_std": list(r.prestrain_std),
-        "e_err": r.mean_prestrain / em - 1,
-        "e_std_rel": r.mean_prestrain_std / em,
-        "e_z": (r.mean_prestrain - em) / max(r.mean_prestrain_std, 1e-300),
-        "lift": r.lift,
-        "lift_std": r.lift_std,
-        "lift_err": (r.lift - L) / L if L else None,
-        "lift_band": r.lift_std / abs(L) if L else None,
-        "lift_abs_err": r.lift - L,
-        "lift_z": (r.lift - L) / max(r.lift_std, 1e-300),
-        "damping": r.damping,
-        "damping_std": r.damping_std,
-        "f11": r.f11_hz,
-        "tension_ratio": r.tension_ratio,
-        "informative": r.informative,
-        "static": r.static,
-        "adequate": r.adequate,
-        "screen": r.screen.ratio,
-        "screen_threshold": r.screen.threshold,
-        "warnings": r.warnings,
+        "prestrain": [info["parameters"]["prestrain_x"], info["parameters"]["prestrain_y"]],
+        "e_err": tension["mean_prestrain"] / em - 1,
+        "e_std_rel": tension["mean_prestrain_std"] / em,
+        "e_z": (tension["mean_prestrain"] - em) / max(tension["mean_prestrain_std"], 1e-300),
+        "lift": lift,
+        "lift_std": lift_std,
+        "lift_err": (lift - L) / L if L else None,
+        "lift_band": lift_std / abs(L) if L else None,
+        "lift_abs_err": lift - L,
+        "lift_z": (lift - L) / max(lift_std, 1e-300),
+        "f11": tension["loaded_f11_hz"],
+        "tension_ratio": tension["posterior_over_prior"],
+        "informative": tension["source"] == "buffeting",
+        "adequate": info["model_adequate"],
+        "screen": tension["screen"]["ratio"] if tension["screen"] else float("nan"),
+        "solutions": info["solutions"],
+        "warnings": info["warnings"],
         "cpu_s": cpu,
     }
-    best = r.best
-    if best is not None:
-        out.update(forcing=list(best.forcing), iterations=best.iterations, converged=best.converged,
-                   static_chi2=best.static_chi2, spectral_chi2=best.spectral_chi2)  # fmt: skip
-        if check:  # the modal tangent's loaded frequencies against the full order's at the optimum
-            bp = best.problem
-            out["f_modal"] = modal_frequencies(bp, best.theta, 2).tolist()
-            out["f_full"] = full_order_frequencies(bp, best.theta, 2).tolist()
     return out
 
 
@@ -154,8 +152,8 @@ def main(argv=None) -> int:
     ap.add_argument("--extra", action="store_true", help="add the TE, anti, bump, damping x2 and order-1 cases")
     ap.add_argument("--seeds", nargs="*", type=int, default=[0, 1, 2, 3, 4])
     ap.add_argument("--frames", nargs="*", type=int, default=[450, 1400])
-    ap.add_argument("--force", action="store_true", help="fit the spectrum even when the screen finds no resonance")
-    ap.add_argument("--check", action="store_true", help="full-order loaded frequencies at each optimum")
+    ap.add_argument("--prior", default="auto", choices=("auto", "frame", "aerodynamic", "interior"))
+    ap.add_argument("--bin-hz", type=float, default=RealisticSettings.spectrum_bin_hz, help="spectral bin width (Hz)")
     ap.add_argument("--out", help="append one JSON line per fit")
     ap.add_argument("--table", help="only print the table of a JSON-lines file")
     ap.add_argument("-v", "--verbose", action="store_true")
@@ -178,14 +176,13 @@ def main(argv=None) -> int:
     rows = []
     for path in paths:
         for frames in a.frames:
-            row = one(model, path, frames, a.force, a.check)
+            row = one(model, path, frames, a.prior, a.bin_hz)
             rows.append(row)
-            check = f" f11 modal/full {row['f_modal'][0]:.2f}/{row['f_full'][0]:.2f}" if "f_full" in row else ""
             print(
                 f"{row['record'][:40]:40s} {row['frames']:5d} e {row['prestrain'][0]:.4f},{row['prestrain'][1]:.4f} "
                 f"({100 * row['e_err']:+.1f} %, z {row['e_z']:+.1f}) lift {row['lift']:.3f}±{row['lift_std']:.3f} "
                 f"(z {row['lift_z']:+.1f}) f11 {row['f11']:.1f} inf {row['informative']} screen {row['screen']:.1f} "
-                f"cpu {row['cpu_s']:.2f}{check}",
+                f"cpu {row['cpu_s']:.2f}",
                 flush=True,
             )
             if a.out:
