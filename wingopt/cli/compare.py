@@ -63,8 +63,22 @@ def register(sub, common) -> None:
         "--jobs", type=int, default=1, help="worker processes of a local dask cluster (default 1: in this process)"
     )
     p.add_argument("--resume", action="store_true", help="keep the records already in DIR/records.jsonl")
-    p.add_argument("--out", required=True, help="directory for records.jsonl, summary.json, comparison.md")
-    p.add_argument("--doc", help="also write the markdown report to this file (e.g. docs/estimation_comparison.md)")
+    p.add_argument(
+        "--out",
+        required=True,
+        help="directory for records.jsonl, summary.json, comparison.md: new, empty or an earlier compare's (it may "
+        "hold only the files wingopt wrote there, unchanged: a file of yours there is refused, never overwritten)",
+    )
+    p.add_argument(
+        "--doc",
+        help="also write the markdown report to this file (e.g. docs/estimation_comparison.md); an existing file is "
+        "refused unless --force",
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="let --doc replace an existing file (the earlier one is kept as FILE.bak, or FILE.bak.1, ...)",
+    )
     p.add_argument("--json", action="store_true", help="print the summary as JSON instead of the table")
     add_engine_options(p, workers_flag="--jobs")
     p.set_defaults(func=run)
@@ -117,6 +131,7 @@ def run(args) -> int:
         engine_settings(args, args.jobs, retries=2),
         resume=args.resume,
         doc=args.doc,
+        force=args.force,
         on_start=start,
         on_record=_show,
     )

@@ -3,8 +3,8 @@
 Writes into ``--out`` (atomically): ``summary.json`` (layout, predicted errors, relaxation bound and
 gap, baselines, ``warnings``), ``sensors.toml`` (the ``[[sensors]]`` tables to paste) and
 ``layout.png`` (the layout over the predicted error field); ``--write-problem NEW.toml`` writes the
-problem file with the designed sensors (an existing file is kept as ``NEW.toml.bak``). It parses and
-calls :func:`wingopt.workflows.design.run_design`.
+problem file with the designed sensors (an existing file is refused unless ``--force``, and then kept
+as ``NEW.toml.bak``). It parses and calls :func:`wingopt.workflows.design.run_design`.
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from wingopt.cli import OUT_HELP
 from wingopt.errors import InputError
 
 ORDER = 35
@@ -60,12 +61,18 @@ def register(sub, common) -> None:
         "about 8 N identifications)",
     )
     p.add_argument("--allow-overlap", action="store_true", help="let chosen rectangles overlap")
-    p.add_argument("--out", required=True, help="output directory (replaced atomically)")
+    p.add_argument("--out", required=True, help=OUT_HELP)
     p.add_argument(
         "--write-problem",
         metavar="NEW.toml",
-        help="also write the problem file with the designed sensors (atomically; an existing NEW.toml is first "
-        "kept as NEW.toml.bak, replacing an earlier backup)",
+        help="also write the problem file with the designed sensors (atomically; an existing file, the input "
+        "problem file included, is refused unless --force)",
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="let --write-problem replace an existing file (the earlier one is kept as NEW.toml.bak, or "
+        "NEW.toml.bak.1, ...)",
     )
     p.add_argument("--no-plots", action="store_true", help="skip the figure")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
@@ -86,6 +93,7 @@ def run(args) -> int:
         montecarlo=args.montecarlo,
         plots=not args.no_plots,
         write_problem=args.write_problem,
+        force=args.force,
         criterion=args.criterion,
         prior=args.prior,
         length_scale=args.length_scale,
