@@ -207,3 +207,12 @@ def test_a_cache_holds_only_gains_wingopt_wrote(tmp_path):
     with pytest.raises(InputError, match="cache.*not written by wingopt"):
         plate_gains(load_problem("plate"), [(7, 31)], cache=cache)
     assert (cache / "gains_7x31.npz").read_bytes() == before
+
+
+def test_an_output_file_inside_the_output_directory_is_refused(tmp_path, capsys):
+    argv = ["design-sensors", "membrane", "--count", "2", "--criterion", "a", "--nominal", "1", "--no-plots"]
+    out = tmp_path / "d"
+    assert main([*argv, "--out", str(out), "--write-problem", str(out / "new.toml")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "holds the file" in err and "--write-problem" in err
+    assert not out.exists()

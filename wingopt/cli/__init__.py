@@ -34,6 +34,7 @@ __all__ = [
     "EXIT_SOLVER",
     "EXIT_INTERNAL",
     "OUT_HELP",
+    "add_force_option",
     "SOLVER_FLAGS",
 ]
 
@@ -44,6 +45,18 @@ OUT_HELP = (
     "there, unchanged (a file of yours there, or an input of the run, is refused and never deleted)"
 )
 """The ``--out`` help of every command that writes a result directory (wingopt.results.ownership)."""
+
+
+def add_force_option(parser, option: str, name: str = "FILE") -> None:
+    """``--force``: let ``option`` (a single output file) replace an existing file, kept as a backup
+    (the rule of :mod:`wingopt.results.ownership`, the same for every such option)."""
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help=f"let {option} replace an existing file (the earlier one is kept as {name}.bak, or {name}.bak.1, ...); "
+        "without it an existing file, the input problem file included, is refused",
+    )
+
 
 SOLVER_FLAGS = {("morph", "qp"): ("--solver", "qp"), ("identify", "mhe"): ("--backend", "window")}
 """(command, context of a :class:`SolverError`) -> the flag that picks another solver, and the

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from wingopt.cli import OUT_HELP
+from wingopt.cli import OUT_HELP, add_force_option
 from wingopt.problem import parse_mesh
 from wingopt.resources import parse_size
 from wingopt.results import check_new_file, check_writable, to_jsonable
@@ -55,12 +55,7 @@ def register(sub, common) -> None:
         help="write the problem file with the calibration as [identification] prior (an existing file, the input "
         "problem file included, is refused unless --force)",
     )
-    p.add_argument(
-        "--force",
-        action="store_true",
-        help="let --write-problem replace an existing file (the earlier one is kept as NEW.toml.bak, or "
-        "NEW.toml.bak.1, ...)",
-    )
+    add_force_option(p, "--write-problem", "NEW.toml")
     p.add_argument("--mesh", help="estimator mesh NXxNY (default: the problem's)")
     p.add_argument("--noise-std", type=float, help="sensor noise std (default: estimated from the data)")
     p.add_argument("--max-memory", metavar="SIZE", help="refuse runs estimated to need more (e.g. 4G)")
@@ -70,7 +65,7 @@ def register(sub, common) -> None:
 
 def run(args) -> int:
     inputs = calibration_inputs(args.problem, args.data)
-    check_writable(args.out, inputs=inputs)
+    check_writable(args.out, inputs=[*inputs, ("--write-problem", args.write_problem)])
     if args.write_problem is not None:
         check_new_file(args.write_problem, "--write-problem", force=args.force, inputs=inputs)
     run_ = calibrate_membrane(

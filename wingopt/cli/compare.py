@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from wingopt.cli import add_force_option
 from wingopt.cli.identify import parse_noise
 from wingopt.cli.sweep import add_engine_options, announce, engine_settings
 from wingopt.errors import InputError
@@ -74,11 +75,7 @@ def register(sub, common) -> None:
         help="also write the markdown report to this file (e.g. docs/estimation_comparison.md); an existing file is "
         "refused unless --force",
     )
-    p.add_argument(
-        "--force",
-        action="store_true",
-        help="let --doc replace an existing file (the earlier one is kept as FILE.bak, or FILE.bak.1, ...)",
-    )
+    add_force_option(p, "--doc", "FILE")
     p.add_argument("--json", action="store_true", help="print the summary as JSON instead of the table")
     add_engine_options(p, workers_flag="--jobs")
     p.set_defaults(func=run)

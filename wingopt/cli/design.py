@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from wingopt.cli import OUT_HELP
+from wingopt.cli import OUT_HELP, add_force_option
 from wingopt.errors import InputError
 
 ORDER = 35
@@ -68,12 +68,7 @@ def register(sub, common) -> None:
         help="also write the problem file with the designed sensors (atomically; an existing file, the input "
         "problem file included, is refused unless --force)",
     )
-    p.add_argument(
-        "--force",
-        action="store_true",
-        help="let --write-problem replace an existing file (the earlier one is kept as NEW.toml.bak, or "
-        "NEW.toml.bak.1, ...)",
-    )
+    add_force_option(p, "--write-problem", "NEW.toml")
     p.add_argument("--no-plots", action="store_true", help="skip the figure")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     p.set_defaults(func=run)

@@ -21,7 +21,7 @@ from wingopt.errors import OutputError
 from wingopt.results.ownership import entry_unchanged, manifest_entry, read_manifest, write_manifest
 from wingopt.results.writer import _os_error, _umask, check_writable, to_jsonable, write_atomic
 
-__all__ = ["OwnedDirectory", "AppendLog"]
+__all__ = ["OwnedDirectory", "AppendLog", "append_synced", "truncate_synced"]
 
 log = logging.getLogger(__name__)
 
@@ -116,10 +116,7 @@ class AppendLog:
                 keep = max(data.rfind(b"\n") + 1, listed)
                 if keep < len(data):
                     log.warning("%s: cutting a torn last line (%d bytes) before appending", self.path, len(data) - keep)
-                    with open(self.path, "r+b") as fh:
-                        fh.truncate(keep)
-                        fh.flush()
-                        os.fsync(fh.fileno())
+                    truncate_synced(self.path, keep)
                     data = data[:keep]
             self._hash.update(data)
             self.size = len(data)
@@ -131,12 +128,25 @@ class AppendLog:
 
     def append(self, data: bytes) -> None:
         """One write of ``data`` (a whole line), flushed and synced, then listed."""
-        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
-        try:
-            os.write(fd, data)
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+        append_synced(self.path, data)
         self._hash.update(data)
         self.size += len(data)
         self._note()
+
+
+def append_synced(path: Path, data: bytes) -> None:
+    """Append ``data`` with one ``write`` (a whole line: a crash loses at most this line), then fsync."""
+    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
+    try:
+        os.write(fd, data)
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def truncate_synced(path: Path, size: int) -> None:
+    """Cut ``path`` to ``size`` bytes (a torn last line), then fsync."""
+    with open(path, "r+b") as fh:
+        fh.truncate(size)
+        fh.flush()
+        os.fsync(fh.fileno())

@@ -214,6 +214,10 @@ def check_owned(target: Path, given: str, what: str = "out") -> None:
         )
 
 
+OUTPUT_FILE_OPTIONS = ("write-problem", "doc")
+"""Single output files written beside a result directory (never inside it: it is replaced whole)."""
+
+
 def _inside(path: Path, directory: Path) -> bool:
     return path == directory or directory in path.parents
 
@@ -235,9 +239,11 @@ def check_inputs_outside(target: Path, given: str, inputs: Iterable, what: str =
         except (OSError, RuntimeError, ValueError):
             continue
         if any(_inside(c, target) for c in candidates):
+            noun = "the file" if option.lstrip("-") in OUTPUT_FILE_OPTIONS else "the input"
             raise OutputError(
-                f"{what} = {given!r}: holds the input {str(path)!r} ({option}); the output directory is "
-                "replaced as a whole, so it must not hold what the run reads: give another directory"
+                f"{what} = {given!r}: holds {noun} {str(path)!r} ({option}); the output directory is "
+                "replaced as a whole, so it must not hold what the run reads or writes beside it: give "
+                "another directory"
             )
 
 

@@ -167,7 +167,7 @@ def write_calibration_outputs(
     text = calibrated_problem_text(run) if write_problem is not None else None
     if write_problem is not None:
         check_new_file(write_problem, "--write-problem", force=force, inputs=inputs)
-    with ResultDirectory(out_dir, inputs=inputs) as tmp:
+    with ResultDirectory(out_dir, inputs=[*inputs, ("--write-problem", write_problem)]) as tmp:
         write_json(tmp / "summary.json", to_jsonable(run.summary()))
         if text is not None:
             (tmp / "calibrated.toml").write_text(text)

@@ -253,7 +253,7 @@ def run_comparison(
     if prob.kind != "membrane":
         raise InputError(f"problem = {str(problem)!r}: compare needs a membrane problem")
     inputs = [("problem", str(prob.source))]
-    check_writable(out, inputs=inputs)
+    check_writable(out, inputs=[*inputs, ("--doc", doc)])
     if doc:
         check_new_file(doc, "doc", force=force, inputs=inputs)
     samples = int(round(1.0 / prob.identification.dt)) + 1
@@ -262,7 +262,7 @@ def run_comparison(
         resources.check(
             resources.estimate_identify(prob.nodes, samples, truth_nodes=preset.truth_mesh, method=method, knobs=knobs)
         )
-    owner = OwnedDirectory(out, inputs=inputs)
+    owner = OwnedDirectory(out, inputs=[*inputs, ("--doc", doc)])
     out = owner.path
     rec_path = out / "records.jsonl"
     if resume and rec_path.exists() and owner.owns("records.jsonl"):

@@ -109,7 +109,7 @@ def write_design_outputs(
     inputs = _inputs(source if source is not None else result.problem)
     if write_problem is not None:
         check_new_file(write_problem, "write-problem", force=force, inputs=inputs)
-    with ResultDirectory(out, inputs=inputs) as tmp:
+    with ResultDirectory(out, inputs=[*inputs, ("--write-problem", write_problem)]) as tmp:
         write_json(tmp / "summary.json", summary)
         (tmp / "sensors.toml").write_text(toml)
         if plots:
@@ -146,7 +146,7 @@ def run_design(
     replace an existing file (kept as ``NAME.bak``).
     """
     inputs = _inputs(problem)
-    check_writable(out, inputs=inputs)
+    check_writable(out, inputs=[*inputs, ("--write-problem", write_problem)])
     settings = design_settings(**options)
     if write_problem is not None:
         check_new_file(write_problem, "write-problem", force=force, inputs=inputs)

@@ -21,6 +21,7 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.results import to_jsonable, write_atomic, write_csv
+from wingopt.results.owned import append_synced, truncate_synced
 
 __all__ = [
     "RecordLog",
@@ -110,23 +111,15 @@ class RecordLog:
         if data and not data.endswith(b"\n"):
             keep = data.rfind(b"\n") + 1
             log.warning("%s: cutting a torn last line (%d bytes) before appending", self.path, len(data) - keep)
-            with open(self.path, "r+b") as fh:
-                fh.truncate(keep)
-                fh.flush()
-                os.fsync(fh.fileno())
+            truncate_synced(self.path, keep)
 
     def append(self, record: dict) -> None:
         """Append one record: one write of the whole line, flushed and synced before returning."""
         line = (json.dumps(to_jsonable(record), allow_nan=False) + "\n").encode()
         if self._log is not None:
             self._log.append(line)
-            return
-        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-        try:
-            os.write(fd, line)
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+        else:
+            append_synced(self.path, line)
 
     def read(self) -> list[dict]:
         return read_records(self.path)
