@@ -256,9 +256,12 @@ def test_compare_command_writes_records_and_resumes(small_file, tmp_path, capsys
     recs = (out / "records.jsonl").read_text().splitlines()
     assert len(recs) == 1 and json.loads(recs[0])["method"] == "mhe"
     assert (tmp_path / "doc.md").read_text().startswith("# Load identification")
-    # Resuming recomputes nothing.
-    assert main(argv + ["--resume"]) == 0
+    # Resuming recomputes nothing; the existing --doc is replaced only with --force (kept as .bak).
+    assert main(argv + ["--resume"]) == 2
+    assert "--force" in capsys.readouterr().err
+    assert main(argv + ["--resume", "--force"]) == 0
     assert len((out / "records.jsonl").read_text().splitlines()) == 1
+    assert (tmp_path / "doc.md.bak").read_text().startswith("# Load identification")
     assert main(["compare", str(small_file), "--methods", "kalman", "--out", str(out)]) == 2
 
 

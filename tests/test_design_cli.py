@@ -66,16 +66,25 @@ def test_design_cli_montecarlo(tmp_path, capsys):
     assert "montecarlo" in capsys.readouterr().err
 
 
-def test_write_problem_keeps_a_backup(tmp_path):
-    # --write-problem goes through results.write_text_atomic: an existing file is kept as NAME.bak.
+def test_write_problem_onto_an_existing_file_is_refused_without_force_and_kept_as_bak_with_it(tmp_path):
+    # --write-problem goes through results.write_text_atomic: an existing file is refused unless
+    # force, and then kept as NAME.bak (NAME.bak.1, ... when taken: a backup never replaces a file).
     from wingopt.errors import OutputError
     from wingopt.results import write_text_atomic
 
     path = tmp_path / "new.toml"
     assert write_text_atomic(path, "a = 1\n", what="write-problem") == (path, None)
-    _, kept = write_text_atomic(path, "a = 2\n", what="write-problem")
+    with pytest.raises(OutputError, match="write-problem = .*new.toml.*exists.*--force"):
+        write_text_atomic(path, "a = 2\n", what="write-problem")
+    assert path.read_text() == "a = 1\n"
+    _, kept = write_text_atomic(path, "a = 2\n", what="write-problem", force=True)
     assert kept == tmp_path / "new.toml.bak" and kept.read_text() == "a = 1\n" and path.read_text() == "a = 2\n"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["new.toml", "new.toml.bak"]  # no temporaries left
+    _, kept = write_text_atomic(path, "a = 3\n", what="write-problem", force=True)
+    assert kept == tmp_path / "new.toml.bak.1" and kept.read_text() == "a = 2\n"
+    assert (tmp_path / "new.toml.bak").read_text() == "a = 1\n"  # the first backup is kept too
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["new.toml", "new.toml.bak", "new.toml.bak.1"]
+    with pytest.raises(OutputError, match="write-problem.*the input problem"):
+        write_text_atomic(path, "x", what="write-problem", inputs=[("problem", str(path))])
     with pytest.raises(OutputError, match="write-problem.*is a directory"):
         write_text_atomic(tmp_path, "x", what="write-problem")
     with pytest.raises(OutputError, match="does not exist"):

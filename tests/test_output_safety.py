@@ -40,7 +40,7 @@ def test_foreign_directory_is_refused_and_kept(tmp_path, capsys):
     argv = ["identify", "membrane", *LINEAR, "--data", str(proj / "rec.csv"), "--mesh", "13x7", "--no-plots"]
     assert main([*argv, "--out", str(proj)]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and str(proj) in err and "not written by wingopt" in err
+    assert err.count("\n") == 1 and str(proj) in err and "holds the input" in err  # the input is inside
     assert sorted(p.name for p in proj.iterdir()) == ["rec.csv"]
     assert (proj / "rec.csv").read_text() == RECORD.read_text()
 
@@ -71,13 +71,16 @@ def test_empty_directory_and_earlier_result_are_replaced_with_umask_permissions(
         os.umask(old)
     assert (out / MARKER).is_file() and (out / "summary.json").is_file()
     assert out.stat().st_mode & 0o777 == 0o750
-    (out / "stale.txt").write_text("from an earlier run")
+    (out / "notes.txt").write_text("a user's file in the earlier result")
+    assert main([*FAST, "--out", str(out)]) == 2  # refused, naming it: never deleted
+    assert "notes.txt" in capsys.readouterr().err and (out / "notes.txt").is_file()
+    (out / "notes.txt").unlink()
     old = os.umask(0o022)
     try:
         assert main([*FAST, "--out", str(out)]) == 0
     finally:
         os.umask(old)
-    assert not (out / "stale.txt").exists() and out.stat().st_mode & 0o777 == 0o755
+    assert out.stat().st_mode & 0o777 == 0o755
     assert _leftovers(tmp_path) == []
 
 

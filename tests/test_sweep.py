@@ -151,6 +151,18 @@ def test_a_worker_killed_mid_sweep_is_replaced_and_every_record_is_present(clust
     assert by["t2"]["pid"] != int(Path(marker).read_text())  # re-run on a live worker
 
 
+def test_a_worker_death_costs_no_retries(tmp_path):
+    """With no retries at all, a task whose worker dies under it still runs again and is recorded:
+    a worker's death is not the task's failure (it has a budget of its own, engine.MAX_WORKER_DEATHS)."""
+    marker = str(tmp_path / "killed")
+    tasks = [SweepTask(f"t{i}", _die_once, (marker, i), cost=10 - i) for i in range(4)]
+    settings = EngineSettings(mode="local", workers=2, retries=0, progress=False, dashboard=False)
+    with Engine(settings) as eng:
+        records = {r["key"]: r for r in eng.run(tasks)}
+    assert os.path.exists(marker) and sorted(records) == [f"t{i}" for i in range(4)]
+    assert all(r["status"] == "ok" and r["square"] == r["i"] ** 2 for r in records.values()), records
+
+
 def _count(counter: str, i: int, run: int = 1) -> dict:
     """A task that appends ``run:index`` to ``counter`` each time it runs."""
     with open(counter, "a") as fh:
@@ -279,7 +291,11 @@ def test_sweep_command_serial_then_resume_on_an_attached_scheduler(spec_file, tm
 
 
 def test_compare_resumes_the_records_of_the_pre_engine_compare(tmp_path, capsys):
-    """Records without a key (written by compare before the engine) are matched by their fields."""
+    """Records without a key (written by compare before the engine) are matched by their fields,
+    in a records file wingopt wrote (listed in the directory's manifest); the same file edited
+    by hand is no longer wingopt's: --resume refuses it, naming it, and leaves it as it is."""
+    from wingopt.results.ownership import manifest_entry, read_manifest, write_manifest
+
     problem = tmp_path / "small.toml"
     problem.write_text((ROOT / "problems" / "membrane.toml").read_text().replace("nodes = [25, 13]", "nodes = [13, 7]"))
     out = tmp_path / "cmp"
@@ -289,7 +305,13 @@ def test_compare_resumes_the_records_of_the_pre_engine_compare(tmp_path, capsys)
     first = json.loads(capsys.readouterr().out.splitlines()[-1])
     path = out / "records.jsonl"
     old = [{k: v for k, v in r.items() if k not in ("key", "status", "params")} for r in read_records(path)]
-    path.write_text("".join(json.dumps(r) + "\n" for r in old))
+    text = "".join(json.dumps(r) + "\n" for r in old)
+    path.write_text(text)
+    assert main(argv + ["--resume"]) == 2
+    assert "records.jsonl" in capsys.readouterr().err and path.read_text() == text
+    files = read_manifest(out)["files"]
+    files["records.jsonl"] = {"log": True, **manifest_entry(path)}  # as the older compare's own file
+    write_manifest(out, files)
     assert main(argv + ["--resume"]) == 0
     again = json.loads(capsys.readouterr().out.splitlines()[-1])
     recs = read_records(path)

@@ -41,4 +41,7 @@ def build_model(problem, nodes: tuple[int, int] | None = None) -> WingModel:
         Sparse ``M``, ``K``, damping, inputs and sensors; ``model.system`` is its
         :class:`~wingopt.dynamics.SecondOrderSystem` (modes and static fields cached).
     """
+    from wingopt.problem import as_problem
+
+    problem = as_problem(problem)
     return _MODEL_CLASSES[problem.kind].from_problem(problem, nodes)

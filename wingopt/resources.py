@@ -1,9 +1,15 @@
 """Size estimates before work: refuse a run that cannot fit instead of dying halfway.
 
-``estimate_identify`` and ``estimate_morph`` return an :class:`Estimate` (memory in bytes, time in
-seconds, the terms that dominate); :func:`check` raises an :class:`~wingopt.errors.InputError`
-with the estimate when the memory exceeds what the machine has available (``MemAvailable``) or a
-given limit (``--max-memory``). The formulas count the arrays that scale with the mesh and the
+Every command makes one size estimate before it starts (issue 25): ``estimate_identify``,
+``estimate_morph``, ``estimate_modes`` (any model build: ``modes``, ``gains``, ``design-sensors``,
+``calibrate``), ``estimate_stream``, ``estimate_design`` and ``estimate_qp`` return an
+:class:`Estimate` (memory in bytes, time in seconds, the terms that dominate and the option behind
+each); :func:`check` raises an :class:`~wingopt.errors.InputError` naming the option of the largest
+term when the memory exceeds what this process may use (``MemAvailable``, the address-space limit
+``ulimit -v`` and the cgroup's limit, whichever is least) or a given limit (``--max-memory``), or
+when the time exceeds :data:`MAX_SECONDS`. Counts that multiply the work (tasks of a study grid,
+seeds, Monte Carlo layouts, sensors) have limits of their own (:func:`check_count`), and so does
+the size of what is read (:func:`check_input_file`). The formulas count the arrays that scale with the mesh and the
 duration (trajectories, dense modal bases and covariances, sparse factorisations) plus the
 interpreter's own ~150 MB; they were checked against the peak RSS of runs on small meshes (within
 a factor 1.5: identify 25x13 from a 49x25 truth, 1 s: 233 MB measured; 4 s: 391 MB; 97x49 from a 25x13
@@ -26,9 +32,16 @@ __all__ = [
     "estimate_identify",
     "estimate_morph",
     "estimate_modes",
+    "estimate_stream",
+    "estimate_design",
+    "estimate_qp",
     "available_memory",
     "check",
+    "check_count",
+    "check_input_file",
     "parse_size",
+    "LIMITS",
+    "MAX_SECONDS",
 ]
 
 BASE_BYTES = 150e6
@@ -39,16 +52,48 @@ _F = 8.0  # bytes per float64
 
 @dataclass(frozen=True)
 class Estimate:
-    """Memory (bytes) and time (s) a run will need, and the terms behind them."""
+    """Memory (bytes) and time (s) a run will need, and the terms behind them.
+
+    ``knobs``: the option that sets each term (``{"truth trajectory": "--t-end 1e9"}``), named by
+    :func:`check` when it refuses.
+    """
 
     what: str
     memory: float
     seconds: float
     terms: dict[str, float] = field(default_factory=dict)
+    knobs: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def top(self) -> str:
+        return max(self.terms, key=self.terms.get) if self.terms else "total"
 
     def describe(self) -> str:
-        top = max(self.terms, key=self.terms.get) if self.terms else "total"
-        return f"{self.what} needs about {fmt_bytes(self.memory)} (mostly {top}) and {fmt_seconds(self.seconds)}"
+        return f"{self.what} needs about {fmt_bytes(self.memory)} (mostly {self.top}) and {fmt_seconds(self.seconds)}"
+
+    def knob(self) -> str | None:
+        """The option behind the largest term (``None`` if not known)."""
+        return self.knobs.get(self.top)
+
+
+LIMITS = {
+    "tasks": 100_000,
+    "seeds": 10_000,
+    "montecarlo": 1_000,
+    "nominal": 1_000,
+    "sensors": 1_000,
+    "count": 1_000,
+    "modes": 10_000,
+    "meshes": 20,
+}
+"""Counts that multiply the work: a study's tasks (grid x cases), noise seeds, Monte Carlo layouts,
+nominal loads, sensors of a problem, sensors to design, modes asked for, meshes of ``gains``."""
+
+MAX_SECONDS = 30 * 86400.0
+"""A run estimated to take longer than a month is refused (it would be stopped long before)."""
+
+MAX_TEXT_BYTES = 1 << 20
+"""Largest problem file or sweep spec read (1 MiB: a problem file is a few kB)."""
 
 
 def fmt_bytes(b: float) -> str:
@@ -80,18 +125,53 @@ def parse_size(text: str) -> float:
 
 
 def available_memory() -> float:
-    """Bytes the machine can give now (``MemAvailable``; total physical memory where unknown)."""
+    """Bytes this process may use now: the least of ``MemAvailable`` (total physical memory where
+    unknown), the address-space limit (``ulimit -v``, less what is mapped already) and the cgroup's
+    memory limit (less its current use)."""
+    avail = float("inf")
     try:
         with open("/proc/meminfo") as fh:
             for line in fh:
                 if line.startswith("MemAvailable:"):
-                    return float(line.split()[1]) * 1024
+                    avail = float(line.split()[1]) * 1024
+                    break
     except OSError:
         pass
+    if avail == float("inf"):
+        try:
+            avail = float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+        except (ValueError, OSError, AttributeError):
+            pass
     try:
-        return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
-    except (ValueError, OSError, AttributeError):
-        return float("inf")
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if soft != resource.RLIM_INFINITY and soft > 0:
+            avail = min(avail, max(soft - _mapped_bytes(), 0.0) + BASE_BYTES)
+    except (ImportError, OSError, ValueError):
+        pass
+    for limit_file, usage_file in (
+        ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+        ("/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes"),
+    ):
+        try:
+            text = open(limit_file).read().strip()
+            if text.isdigit() and int(text) < 1 << 60:
+                used = float(open(usage_file).read().strip())
+                avail = min(avail, max(float(text) - used, 0.0) + BASE_BYTES)
+            break
+        except (OSError, ValueError):
+            continue
+    return avail
+
+
+def _mapped_bytes() -> float:
+    """Virtual memory this process maps now (what counts against ``ulimit -v``)."""
+    try:
+        with open("/proc/self/statm") as fh:
+            return float(fh.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError, AttributeError):
+        return 0.0
 
 
 def _lu_bytes(n: float) -> float:
@@ -109,11 +189,23 @@ def plate_dofs(nodes: tuple[int, int]) -> int:
     return (int(nodes[0]) + 2) * int(nodes[1])
 
 
-def estimate_modes(nodes: tuple[int, int], kind: str = "membrane") -> Estimate:
+def _mesh(nodes) -> str:
+    return f"{int(nodes[0])}x{int(nodes[1])}"
+
+
+def estimate_modes(nodes: tuple[int, int], kind: str = "membrane", knob: str = "--mesh") -> Estimate:
+    """Memory and time of building the FE model (and a few modes) on ``nodes``."""
     n = membrane_dofs(nodes) if kind == "membrane" else plate_dofs(nodes)
     terms = {"sparse factorisation": _lu_bytes(n), "operators": _F * 1.5 * 49 * 4 * n}
     mem = BASE_BYTES + sum(terms.values())
-    return Estimate(f"{kind} model {nodes[0]}x{nodes[1]} ({n} dofs)", mem, 1.0 + 2e-6 * n * math.log2(max(n, 2)), terms)
+    label = f"{knob} {_mesh(nodes)}"
+    return Estimate(
+        f"{kind} model {_mesh(nodes)} ({n} dofs)",
+        mem,
+        1.0 + 2e-6 * n * math.log2(max(n, 2)),
+        terms,
+        dict.fromkeys(terms, label),
+    )
 
 
 def estimate_identify(
@@ -123,38 +215,75 @@ def estimate_identify(
     truth_nodes: tuple[int, int] | None = None,
     method: str = "mhe",
     modes: int = 40,
+    knobs: dict[str, str] | None = None,
 ) -> Estimate:
     """Memory and time of ``identify`` on an estimator mesh ``nodes`` for ``samples`` samples.
 
     ``truth_nodes``: the simulated protocol's truth mesh (its full modal basis is dense and its
-    trajectory is stored); ``None`` for measured data.
+    trajectory is stored); ``None`` for measured data. ``knobs``: the options behind ``"mesh"``,
+    ``"samples"`` and ``"truth"`` (default the ``identify`` flags).
     """
+    k = {"mesh": f"--mesh {_mesh(nodes)}", "samples": "--t-end (the record's length)", "truth": "--truth-mesh"}
+    if truth_nodes is not None:
+        k["truth"] = f"--truth-mesh {_mesh(truth_nodes)}"
+    k.update(knobs or {})
     n = membrane_dofs(nodes)
     N = max(int(samples), 1)
+    m = max(1, min(int(modes), n))
     terms: dict[str, float] = {
         "estimator factorisation": _lu_bytes(n),
         # dense n x n operators of the MHE set-up (97x49, n = 4753: 902 MB peak measured, 0.95x this)
         "dense estimator operators": 5 * _F * n * n,
-        "estimate histories (load, deflection per sample)": 2 * _F * N * n + 2 * _F * N * modes,
+        "estimate histories (load, deflection per sample)": 2 * _F * N * n + 2 * _F * N * m,
+    }
+    knob = {
+        "estimator factorisation": k["mesh"],
+        "dense estimator operators": k["mesh"],
+        "estimate histories (load, deflection per sample)": k["samples"],
     }
     seconds = 2.0 + 5e-4 * N * (1 + n / 2000) + 1e-9 * n**3
     if truth_nodes is not None:
         nt = membrane_dofs(truth_nodes)
         terms["truth modal basis (dense)"] = 4 * _F * nt * nt
         terms["truth trajectory"] = 5 * _F * N * nt
+        knob["truth modal basis (dense)"] = k["truth"]
+        knob["truth trajectory"] = k["samples"] if 5 * N > 4 * nt else k["truth"]
         seconds += 1e-9 * nt**3 + 2e-8 * N * nt
     if method.startswith("jekf"):
         terms["JEKF covariance (dense)"] = 6 * _F * (3 * n) ** 2
+        knob["JEKF covariance (dense)"] = k["mesh"]
         # a dense covariance update per sample, O((3n)^3); the seed's lambda search runs the filter again
         seconds += 1e-10 * N * (3 * n) ** 3 * (2 if method == "jekf-seed" else 1)
-    where = f"identify on {nodes[0]}x{nodes[1]} ({n} dofs), {N} samples"
-    return Estimate(where, BASE_BYTES + sum(terms.values()), seconds, terms)
+    where = f"identify on {_mesh(nodes)} ({n} dofs), {N} samples"
+    return Estimate(where, BASE_BYTES + sum(terms.values()), seconds, terms, knob)
 
 
-def estimate_morph(nodes: tuple[int, int], t_end: float, period: float, plant_dt: float | None = None) -> Estimate:
-    """Memory and time of ``morph`` on the plate mesh ``nodes`` for ``t_end`` s."""
+def estimate_stream(nodes: tuple[int, int], sensors: int, knob: str = "--mesh") -> Estimate:
+    """Memory and time (per sample) of a streaming estimator on ``nodes`` with ``sensors`` sensors."""
+    n = membrane_dofs(nodes)
+    terms = {
+        "model factorisation": _lu_bytes(n),
+        "dense modal basis": 2 * _F * n * min(n, 200),
+        "sensor operators": _F * sensors * n,
+    }
+    knobs = {"model factorisation": f"{knob} {_mesh(nodes)}", "dense modal basis": f"{knob} {_mesh(nodes)}"}
+    knobs["sensor operators"] = "[[sensors]]"
+    return Estimate(
+        f"a stream on {_mesh(nodes)} ({n} dofs)", BASE_BYTES + sum(terms.values()), 2.0 + 1e-9 * n**2, terms, knobs
+    )
+
+
+def estimate_morph(
+    nodes: tuple[int, int],
+    t_end: float,
+    period: float,
+    plant_dt: float | None = None,
+    horizon: int | None = None,
+    inputs: int = 9,
+) -> Estimate:
+    """Memory and time of ``morph`` on the plate mesh ``nodes`` for ``t_end`` s (``horizon``: the QP's)."""
     n = plate_dofs(nodes)
-    steps = max(int(t_end / (plant_dt or period)), 1)
+    steps = max(int(t_end / (plant_dt or period)), 1) if period > 0 and t_end > 0 else 1
     dense = n <= 1000  # closed_loop.DENSE_PLANT_MAX_DOFS
     terms = {
         "trajectories (deflection, velocity per step)": 2 * _F * steps * n,
@@ -162,9 +291,58 @@ def estimate_morph(nodes: tuple[int, int], t_end: float, period: float, plant_dt
         "plant": 6 * _F * (2 * n) ** 2 if dense else _lu_bytes(n) + 2 * _F * n * 200,
         "controller (dense Riccati)": 4 * _F * (2 * min(n, 1000)) ** 2,
     }
+    knobs = {
+        "trajectories (deflection, velocity per step)": f"--t-end {t_end:g} / --period {period:g}",
+        "plant": f"--mesh {_mesh(nodes)}",
+        "controller (dense Riccati)": f"--mesh {_mesh(nodes)}",
+    }
     seconds = 5.0 + 4e-9 * (2 * n) ** 3 * (1 if dense else 0.1) + steps * (2e-3 + 2e-7 * n)
-    where = f"morph on {nodes[0]}x{nodes[1]} ({n} dofs), {steps} steps"
-    return Estimate(where, BASE_BYTES + sum(terms.values()), seconds, terms)
+    if horizon:
+        H = int(horizon)
+        states = 2 * min(n, 1000)
+        # condensed QP: prediction matrices (states x inputs H per step) and the Hessian (inputs H)^2
+        terms["QP (condensed over the horizon)"] = _F * (H * states * inputs * 2 + 3 * (inputs * H) ** 2)
+        knobs["QP (condensed over the horizon)"] = f"--horizon {H}"
+        seconds += steps * 1e-9 * (inputs * H) ** 3 / 100
+    where = f"morph on {_mesh(nodes)} ({n} dofs), {steps} steps"
+    return Estimate(where, BASE_BYTES + sum(terms.values()), seconds, terms, knobs)
+
+
+def estimate_qp(horizon: int, states: int, inputs: int) -> Estimate:
+    """Memory of one condensed MPC problem (``horizon`` steps)."""
+    H = int(horizon)
+    terms = {"QP (condensed over the horizon)": _F * (H * states * inputs * 2 + 3 * (inputs * H) ** 2)}
+    return Estimate(
+        f"a QP over {H} steps", BASE_BYTES + sum(terms.values()), 1e-9 * (inputs * H) ** 3, terms,
+        {"QP (condensed over the horizon)": f"--horizon {H}"},
+    )  # fmt: skip
+
+
+def estimate_design(
+    nodes: tuple[int, int], candidates: int, nominal: int, count: int, montecarlo: int = 0, samples: int = 1000
+) -> Estimate:
+    """Memory and time of ``design-sensors``: the model, one information matrix per candidate and
+    nominal load (modes x modes), the relaxation over the candidates, the Monte Carlo re-ranking."""
+    n = membrane_dofs(nodes)
+    m = min(n, 60)
+    terms = {
+        "model": _lu_bytes(n) + 2 * _F * n * m,
+        "candidate information (candidates x nominal loads)": _F * candidates * max(nominal, 1) * m * 4,
+        "relaxation": _F * candidates * m * m / 4,
+    }
+    knobs = {
+        "model": f"mesh {_mesh(nodes)}",
+        "candidate information (candidates x nominal loads)": f"--nominal {nominal}",
+        "relaxation": "--candidates",
+    }
+    seconds = 2.0 + 1e-9 * n**2 + 2e-6 * candidates * max(nominal, 1) * m + 1e-3 * candidates * count
+    seconds += montecarlo * 8 * max(nominal, 1) * (1.0 + 5e-4 * samples)
+    if montecarlo:
+        knobs["montecarlo"] = f"--montecarlo {montecarlo}"
+    return Estimate(
+        f"design-sensors on {_mesh(nodes)} ({candidates} candidates)", BASE_BYTES + sum(terms.values()), seconds,
+        terms, knobs,
+    )  # fmt: skip
 
 
 SAFETY = 0.5
@@ -173,14 +351,49 @@ other processes grow too (a morph of 1e4 s, 15 GB, would otherwise start on a 24
 
 
 def check(estimate: Estimate, max_memory: float | None = None) -> Estimate:
-    """Raise :class:`InputError` (with the estimate) if the run cannot fit in memory.
+    """Raise :class:`InputError` (naming the option behind the largest term, with the estimate) if
+    the run cannot fit in memory or would take longer than :data:`MAX_SECONDS`.
 
-    The limit is ``max_memory`` when given, else :data:`SAFETY` times the memory available now.
+    The memory limit is ``max_memory`` when given, else :data:`SAFETY` times :func:`available_memory`.
     """
     limit = SAFETY * available_memory() if max_memory is None else float(max_memory)
+    knob = estimate.knob()
+    lead = f"{knob}: " if knob else ""
+    advice = f"give a smaller {knob.split()[0]}" if knob else "use a coarser mesh or a shorter duration"
     if estimate.memory > limit:
         what = "half the memory available" if max_memory is None else "--max-memory"
-        raise InputError(
-            f"{estimate.describe()}: more than {what} ({fmt_bytes(limit)}); use a coarser mesh or a shorter duration"
-        )
+        raise InputError(f"{lead}{estimate.describe()}: more than {what} ({fmt_bytes(limit)}); {advice}")
+    if estimate.seconds > MAX_SECONDS:
+        raise InputError(f"{lead}{estimate.describe()}: longer than the limit of {fmt_seconds(MAX_SECONDS)}; {advice}")
     return estimate
+
+
+def check_count(name: str, value, limit_key: str | None = None, *, what: str = "") -> int:
+    """``value`` a whole number from 1 to ``LIMITS[limit_key]`` (an :class:`InputError` naming ``name``)."""
+    limit = LIMITS[limit_key or name.lstrip("-").replace("-", "_")]
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise InputError(f"{name} = {value!r}: expected a whole number")
+    if value > limit:
+        raise InputError(
+            f"{name} = {value}: more than the limit of {limit}{' ' + what if what else ''}; "
+            "split the work into smaller runs"
+        )
+    return value
+
+
+def check_input_file(path, what: str, limit: int = MAX_TEXT_BYTES) -> None:
+    """Refuse, before reading it, an input that is not a regular file or is larger than ``limit``."""
+    import stat
+
+    try:
+        st = os.stat(path)
+    except OSError:
+        return  # the reader says what is wrong with it
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a directory" if stat.S_ISDIR(st.st_mode) else "not a regular file (a device, a pipe)"
+        raise InputError(f"{what} = {str(path)!r}: is {kind}; expected a text file")
+    if st.st_size > limit:
+        raise InputError(
+            f"{what} = {str(path)!r}: {fmt_bytes(st.st_size)}, more than the {fmt_bytes(limit)} such a file may "
+            "have (a problem file or spec is a few kB)"
+        )

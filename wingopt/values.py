@@ -129,8 +129,10 @@ class LambdaChoice:
     def __post_init__(self) -> None:
         if self.value is not None:
             v = _number("lambda", self.value)
-            if not (math.isfinite(v) and v > 0):
-                raise InputError(f"lambda = {self.value!r}: expected a positive regularization weight")
+            if not (math.isfinite(v) and 1e-30 <= v <= 1e30):
+                raise InputError(
+                    f"lambda = {self.value!r}: expected a positive regularization weight from 1e-30 to 1e30"
+                )
             object.__setattr__(self, "value", v)
             if self.rule is not None:
                 raise InputError("lambda: give a fixed value or a rule, not both")

@@ -3,7 +3,10 @@
 Every module in this package that defines ``register(subparsers)`` is a sub-command; its
 parser's ``func`` takes the parsed arguments and returns the exit code. Exit codes: 0 ok,
 2 bad input (:class:`~wingopt.errors.InputError`), 3 solver failure
-(:class:`~wingopt.errors.SolverError`).
+(:class:`~wingopt.errors.SolverError`), 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP,
+70 internal error (a bug: an exception the package did not expect, reported in one line and not
+as a traceback; ``WINGOPT_TRACEBACK=1`` shows the traceback). Every message is one line, control
+characters escaped.
 """
 
 from __future__ import annotations
@@ -11,7 +14,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import pkgutil
+import re
 import signal
 import sys
 
@@ -19,9 +24,39 @@ from wingopt import __version__
 from wingopt.errors import InputError, SolverError
 from wingopt.optim.registry import available_backends
 
-__all__ = ["main", "build_parser", "solver_flag_hint", "EXIT_OK", "EXIT_INPUT", "EXIT_SOLVER", "SOLVER_FLAGS"]
+__all__ = [
+    "main",
+    "build_parser",
+    "solver_flag_hint",
+    "one_line",
+    "EXIT_OK",
+    "EXIT_INPUT",
+    "EXIT_SOLVER",
+    "EXIT_INTERNAL",
+    "OUT_HELP",
+    "add_force_option",
+    "SOLVER_FLAGS",
+]
 
-EXIT_OK, EXIT_INPUT, EXIT_SOLVER = 0, 2, 3
+EXIT_OK, EXIT_INPUT, EXIT_SOLVER, EXIT_INTERNAL = 0, 2, 3, 70
+
+OUT_HELP = (
+    "output directory, replaced atomically: new, empty, or an earlier run's holding only the files wingopt wrote "
+    "there, unchanged (a file of yours there, or an input of the run, is refused and never deleted)"
+)
+"""The ``--out`` help of every command that writes a result directory (wingopt.results.ownership)."""
+
+
+def add_force_option(parser, option: str, name: str = "FILE") -> None:
+    """``--force``: let ``option`` (a single output file) replace an existing file, kept as a backup
+    (the rule of :mod:`wingopt.results.ownership`, the same for every such option)."""
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help=f"let {option} replace an existing file (the earlier one is kept as {name}.bak, or {name}.bak.1, ...); "
+        "without it an existing file, the input problem file included, is refused",
+    )
+
 
 SOLVER_FLAGS = {("morph", "qp"): ("--solver", "qp"), ("identify", "mhe"): ("--backend", "window")}
 """(command, context of a :class:`SolverError`) -> the flag that picks another solver, and the
@@ -34,7 +69,7 @@ class _Parser(argparse.ArgumentParser):
     """An argument parser whose usage errors are one line (exit code 2), with a pointer to --help."""
 
     def error(self, message: str):  # noqa: D102 - argparse API
-        self.exit(EXIT_INPUT, f"{self.prog}: error: {message} (see '{self.prog} --help')\n")
+        self.exit(EXIT_INPUT, one_line(f"{self.prog}: error: {message} (see '{self.prog} --help')") + "\n")
 
 
 def _common_options() -> argparse.ArgumentParser:
@@ -72,6 +107,16 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+_CONTROL = re.compile(r"[\x00-\x08\x0b-\x1f\x7f\x80-\x9f]")
+
+
+def one_line(text) -> str:
+    """``text`` on one line with its control characters escaped (``\\r``, ``\\x1b``): what a
+    message may hold (a sensor name with a carriage return, an ANSI escape) never garbles the terminal."""
+    s = str(text).replace("\r\n", "\n").replace("\n", " ").replace("\t", " ")
+    return _CONTROL.sub(lambda m: repr(m.group())[1:-1], s)
+
+
 class _Lines(logging.Formatter):
     """``wingopt COMMAND: warning: ...`` (each warning once, on stderr); INFO and DEBUG name their source."""
 
@@ -82,8 +127,8 @@ class _Lines(logging.Formatter):
     def format(self, record: logging.LogRecord) -> str:
         level = record.levelname.lower()
         if record.levelno >= logging.WARNING:
-            return f"wingopt {self.command}: {level}: {record.getMessage()}"
-        return f"wingopt {self.command}: {record.name.removeprefix('wingopt.')}: {record.getMessage()}"
+            return f"wingopt {self.command}: {level}: {one_line(record.getMessage())}"
+        return f"wingopt {self.command}: {record.name.removeprefix('wingopt.')}: {one_line(record.getMessage())}"
 
 
 def solver_flag_hint(command: str, exc: SolverError) -> str:
@@ -163,16 +208,16 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or EXIT_OK)
     except InputError as exc:
-        print(f"{name}: error: {exc}", file=sys.stderr)
+        _say(f"{name}: error: {exc}")
         return EXIT_INPUT
     except SolverError as exc:
-        print(f"{name}: solver failure: {exc}{solver_flag_hint(args.command, exc)}", file=sys.stderr)
+        _say(f"{name}: solver failure: {exc}{solver_flag_hint(args.command, exc)}")
         return EXIT_SOLVER
     except KeyboardInterrupt:
-        print(f"{name}: interrupted (Ctrl-C); nothing written", file=sys.stderr)
+        _say(f"{name}: interrupted (Ctrl-C); nothing written")
         return 128 + signal.SIGINT
     except Terminated as exc:
-        print(f"{name}: terminated by {signal.Signals(exc.signum).name}; nothing written", file=sys.stderr)
+        _say(f"{name}: terminated by {signal.Signals(exc.signum).name}; nothing written")
         return 128 + exc.signum
     except Exception as exc:
         # A signal that arrives inside a C extension (e.g. while a module initialises) comes back
@@ -181,19 +226,45 @@ def main(argv: list[str] | None = None) -> int:
         if isinstance(inner, (Terminated, KeyboardInterrupt)) or _RECEIVED:
             signum = inner.signum if isinstance(inner, Terminated) else (_RECEIVED or [signal.SIGINT])[0]
             what = "interrupted (Ctrl-C)" if signum == signal.SIGINT else f"terminated by {signal.Signals(signum).name}"
-            print(f"{name}: {what}; nothing written", file=sys.stderr)
+            _say(f"{name}: {what}; nothing written")
             return 128 + signum
+        if isinstance(exc, BrokenPipeError):
+            _quiet_stdout()
+            _say(f"{name}: error: standard output was closed before the run ended")
+            return EXIT_INPUT
         if isinstance(exc, MemoryError):
-            print(f"{name}: error: out of memory; try a coarser --mesh or a shorter --t-end", file=sys.stderr)
+            _say(f"{name}: error: out of memory: the size estimate did not foresee it; reduce the sizes of this run")
             return EXIT_INPUT
         if isinstance(exc, OSError):
             where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
-            print(f"{name}: error: {exc.strerror or exc}{where}", file=sys.stderr)
+            _say(f"{name}: error: {exc.strerror or exc}{where}")
             return EXIT_INPUT
-        raise
+        # Last resort: a bug. One line, never a traceback (unless asked for), a documented exit code.
+        if os.environ.get("WINGOPT_TRACEBACK"):
+            raise
+        _say(f"{name}: internal error: {type(exc).__name__}: {exc}; please report it")
+        return EXIT_INTERNAL
     finally:
         for s, h in old.items():
             signal.signal(s, h)
+
+
+def _say(line: str) -> None:
+    """One line on stderr (control characters escaped); silent if stderr itself is closed."""
+    try:
+        print(one_line(line), file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass
+
+
+def _quiet_stdout() -> None:
+    """Point a closed stdout at /dev/null, so that Python's flush at exit does not fail again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):
+        pass
 
 
 if __name__ == "__main__":  # pragma: no cover

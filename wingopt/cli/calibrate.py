@@ -11,11 +11,11 @@ from __future__ import annotations
 import argparse
 import json
 
-from wingopt.errors import InputError
+from wingopt.cli import OUT_HELP, add_force_option
 from wingopt.problem import parse_mesh
 from wingopt.resources import parse_size
-from wingopt.results import to_jsonable
-from wingopt.workflows.calibrate import calibrate_membrane, check_outputs, write_calibration_outputs
+from wingopt.results import check_new_file, check_writable, to_jsonable
+from wingopt.workflows.calibrate import calibrate_membrane, calibration_inputs, write_calibration_outputs
 
 ORDER = 35
 
@@ -48,13 +48,14 @@ def register(sub, common) -> None:
         help="the record starts at rest in the protocol's bubble shape with this peak (m); default: the initial "
         "shape is unknown (a pluck or a tap) and identified",
     )
-    p.add_argument("--out", required=True, help="output directory (summary.json; replaced atomically)")
+    p.add_argument("--out", required=True, help="summary.json; " + OUT_HELP)
     p.add_argument(
         "--write-problem",
         metavar="NEW.toml",
-        help="write the problem file with the calibration as [identification] prior (an existing file is kept "
-        "as NEW.toml.bak)",
+        help="write the problem file with the calibration as [identification] prior (an existing file, the input "
+        "problem file included, is refused unless --force)",
     )
+    add_force_option(p, "--write-problem", "NEW.toml")
     p.add_argument("--mesh", help="estimator mesh NXxNY (default: the problem's)")
     p.add_argument("--noise-std", type=float, help="sensor noise std (default: estimated from the data)")
     p.add_argument("--max-memory", metavar="SIZE", help="refuse runs estimated to need more (e.g. 4G)")
@@ -63,9 +64,10 @@ def register(sub, common) -> None:
 
 
 def run(args) -> int:
-    check_outputs(args.out, args.write_problem)
-    if args.write_problem is not None and str(args.write_problem) == str(args.problem):
-        raise InputError(f"--write-problem {args.write_problem!r}: the input problem file; write a new file")
+    inputs = calibration_inputs(args.problem, args.data)
+    check_writable(args.out, inputs=[*inputs, ("--write-problem", args.write_problem)])
+    if args.write_problem is not None:
+        check_new_file(args.write_problem, "--write-problem", force=args.force, inputs=inputs)
     run_ = calibrate_membrane(
         args.problem,
         args.data,
@@ -74,7 +76,7 @@ def run(args) -> int:
         noise_std=args.noise_std,
         max_memory=parse_size(args.max_memory) if args.max_memory else None,
     )
-    _, written, backup = write_calibration_outputs(run_, args.out, args.write_problem)
+    _, written, backup = write_calibration_outputs(run_, args.out, args.write_problem, force=args.force)
     summary = to_jsonable(run_.summary())
     if args.json:
         print(json.dumps(summary))

@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from wingopt.cli import add_force_option
 from wingopt.cli.identify import parse_noise
 from wingopt.cli.sweep import add_engine_options, announce, engine_settings
 from wingopt.errors import InputError
@@ -63,8 +64,18 @@ def register(sub, common) -> None:
         "--jobs", type=int, default=1, help="worker processes of a local dask cluster (default 1: in this process)"
     )
     p.add_argument("--resume", action="store_true", help="keep the records already in DIR/records.jsonl")
-    p.add_argument("--out", required=True, help="directory for records.jsonl, summary.json, comparison.md")
-    p.add_argument("--doc", help="also write the markdown report to this file (e.g. docs/estimation_comparison.md)")
+    p.add_argument(
+        "--out",
+        required=True,
+        help="directory for records.jsonl, summary.json, comparison.md: new, empty or an earlier compare's (it may "
+        "hold only the files wingopt wrote there, unchanged: a file of yours there is refused, never overwritten)",
+    )
+    p.add_argument(
+        "--doc",
+        help="also write the markdown report to this file (e.g. docs/estimation_comparison.md); an existing file is "
+        "refused unless --force",
+    )
+    add_force_option(p, "--doc", "FILE")
     p.add_argument("--json", action="store_true", help="print the summary as JSON instead of the table")
     add_engine_options(p, workers_flag="--jobs")
     p.set_defaults(func=run)
@@ -117,6 +128,7 @@ def run(args) -> int:
         engine_settings(args, args.jobs, retries=2),
         resume=args.resume,
         doc=args.doc,
+        force=args.force,
         on_start=start,
         on_record=_show,
     )

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from wingopt.cli import OUT_HELP
 from wingopt.results import to_jsonable
 
 ORDER = 1
@@ -25,9 +26,7 @@ def register(sub, common) -> None:
         epilog=EXAMPLE,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument(
-        "--out", default="wingopt-demo", help="output directory (default ./wingopt-demo, replaced atomically)"
-    )
+    p.add_argument("--out", default="wingopt-demo", help="default ./wingopt-demo; " + OUT_HELP)
     p.add_argument("--quick", action="store_true", help="coarse meshes and short runs (a smoke test, not the results)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     p.set_defaults(func=run)

@@ -3,8 +3,8 @@
 Writes into ``--out`` (atomically): ``summary.json`` (layout, predicted errors, relaxation bound and
 gap, baselines, ``warnings``), ``sensors.toml`` (the ``[[sensors]]`` tables to paste) and
 ``layout.png`` (the layout over the predicted error field); ``--write-problem NEW.toml`` writes the
-problem file with the designed sensors (an existing file is kept as ``NEW.toml.bak``). It parses and
-calls :func:`wingopt.workflows.design.run_design`.
+problem file with the designed sensors (an existing file is refused unless ``--force``, and then kept
+as ``NEW.toml.bak``). It parses and calls :func:`wingopt.workflows.design.run_design`.
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from wingopt.cli import OUT_HELP, add_force_option
 from wingopt.errors import InputError
 
 ORDER = 35
@@ -60,13 +61,14 @@ def register(sub, common) -> None:
         "about 8 N identifications)",
     )
     p.add_argument("--allow-overlap", action="store_true", help="let chosen rectangles overlap")
-    p.add_argument("--out", required=True, help="output directory (replaced atomically)")
+    p.add_argument("--out", required=True, help=OUT_HELP)
     p.add_argument(
         "--write-problem",
         metavar="NEW.toml",
-        help="also write the problem file with the designed sensors (atomically; an existing NEW.toml is first "
-        "kept as NEW.toml.bak, replacing an earlier backup)",
+        help="also write the problem file with the designed sensors (atomically; an existing file, the input "
+        "problem file included, is refused unless --force)",
     )
+    add_force_option(p, "--write-problem", "NEW.toml")
     p.add_argument("--no-plots", action="store_true", help="skip the figure")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     p.set_defaults(func=run)
@@ -86,6 +88,7 @@ def run(args) -> int:
         montecarlo=args.montecarlo,
         plots=not args.no_plots,
         write_problem=args.write_problem,
+        force=args.force,
         criterion=args.criterion,
         prior=args.prior,
         length_scale=args.length_scale,

@@ -6,18 +6,22 @@ Rows are read as they arrive (complete lines only; at the end of the file the fo
 ``--print-every``-th sample, CSV) and appended, flushed, to ``lift.csv`` in the run's working
 directory (the hidden sibling ``.OUT.tmp-*`` of ``--out``, readable while the run goes). The run
 stops at the end marker line ``# end``, at the end of standard input, after ``--idle-timeout``
-seconds without a new line, or on SIGTERM / SIGINT; then ``summary.json`` is written and the
-directory is moved to ``--out`` atomically. Every sample's estimate is in ``lift.csv`` exactly once
-(gap rows filled by the reader included). A bad row (irregular time, a non-numeric cell) ends the
-stream: the record so far is written (``stopped``: ``bad input: ...``), then the one-line error
-(exit 2). The CLI parses, installs the signal handlers and prints; the loop is
-:func:`wingopt.workflows.stream.follow`.
+seconds without a new line, on SIGTERM / SIGINT / SIGHUP, or when stdout is closed (the estimates
+still go to ``--out``); then ``summary.json`` is written and the directory is moved to ``--out``
+atomically. Every sample's estimate is in ``lift.csv`` exactly once (gap rows filled by the reader
+included). Whatever else ends the stream keeps the record so far (``stopped`` says why), then one
+line: a bad row (irregular time, a non-numeric cell, a line longer than 1 MiB, a gap of more than
+100,000 samples) exits 2, a numerical failure of the estimator exits 3. A followed file that is
+truncated or rotated is read again from its start, as ``tail -F`` does, with a log line. The CLI
+parses, installs the signal handlers and prints; the loop is :func:`wingopt.workflows.stream.follow`.
 """
 
 from __future__ import annotations
 
 import json
 import logging
+import math
+import os
 import signal
 import sys
 
@@ -34,7 +38,9 @@ def add_options(parser) -> None:
         "streaming (--follow FILE.csv or --data -)",
         "one estimate per sample: CSV on stdout (t,lift_N,lift_std_N,chi2_per_datum,adequate,phase), appended "
         "and flushed to lift.csv in the hidden working directory .OUT.tmp-*, moved to --out with summary.json at "
-        "the end; stops at a line '# end', at the end of stdin, after --idle-timeout or on SIGTERM/SIGINT; the "
+        "the end; stops at a line '# end', at the end of stdin, after --idle-timeout, on SIGTERM/SIGINT/SIGHUP or "
+        "when stdout closes, keeping every estimate (an error ends the stream after the record so far is "
+        "written); a followed file that is truncated or rotated is read again from its start (as tail -F); the "
         "summary line (or --json) goes to stderr; --model auto or fvk streams the FvK membrane (an extended Kalman "
         "filter, prestrains and damping identified), nonlinear the Berger membrane, linear the linear MHE",
     )
@@ -58,25 +64,27 @@ def _fmt(v) -> str:
 
 def run_stream(args, options) -> int:
     """``wingopt identify PROBLEM --follow FILE`` / ``--data -``; returns the exit code."""
+    from wingopt.cli import _quiet_stdout
     from wingopt.estimation.registry import check_options, resolve
     from wingopt.problem import load_problem, parse_mesh
     from wingopt.results import check_writable, to_jsonable
-    from wingopt.workflows.stream import COLUMNS, follow
+    from wingopt.workflows.stream import COLUMNS, check_stream_settings, check_stream_size, follow
 
     if args.print_every < 1:
         raise InputError(f"--print-every {args.print_every}: expected a positive integer")
-    if args.idle_timeout is not None and not args.idle_timeout > 0:
-        raise InputError(f"--idle-timeout {args.idle_timeout}: expected a positive number of seconds")
-    if not args.poll > 0:
-        raise InputError(f"--poll {args.poll}: expected a positive number of seconds")
+    check_stream_settings(args.poll, args.idle_timeout)
+    idle = args.idle_timeout if args.idle_timeout is not None and math.isfinite(args.idle_timeout) else None
     spec = resolve(args.method, args.model, stream=True)
     check_options(spec, options)
-    check_writable(args.out)
+    if args.follow is not None and os.path.isdir(args.follow):
+        raise InputError(f"--follow {args.follow!r}: is a directory, expected a CSV file")
+    check_writable(args.out, inputs=[("--follow", args.follow), ("problem", args.problem)])
     problem = load_problem(args.problem)
     if problem.kind != "membrane":
         raise InputError(f"problem = {args.problem!r}: identify needs a membrane problem, got kind {problem.kind!r}")
     if args.mesh:
         problem = problem.with_mesh(parse_mesh(args.mesh))
+    check_stream_size(problem)
     stop: dict = {}
     previous = {}
 
@@ -84,13 +92,22 @@ def run_stream(args, options) -> int:
         stop["signal"] = signal.Signals(signum).name
 
     def show(k: int, row: tuple) -> None:
-        if k % args.print_every == 0:
-            print(",".join(_fmt(v) for v in row), flush=True)
+        if k % args.print_every == 0 and not stop.get("stdout closed"):
+            try:
+                print(",".join(_fmt(v) for v in row), flush=True)
+            except BrokenPipeError:  # the reader went away: the estimates still go to --out
+                _quiet_stdout()
+                stop["stdout closed"] = True
+                stop["signal"] = "stdout closed"
 
-    for sig in (signal.SIGTERM, signal.SIGINT):
+    for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
         previous[sig] = signal.signal(sig, handler)
     try:
-        print(",".join(COLUMNS), flush=True)
+        try:
+            print(",".join(COLUMNS), flush=True)
+        except BrokenPipeError:
+            _quiet_stdout()
+            stop["stdout closed"] = True
         summary = follow(
             problem,
             args.out,
@@ -98,14 +115,17 @@ def run_stream(args, options) -> int:
             spec=spec,
             options=options,
             poll=args.poll,
-            idle_timeout=args.idle_timeout,
+            idle_timeout=idle,
             stop=stop,
             on_estimate=show,
         )
     finally:
-        for sig, h in previous.items():
-            signal.signal(sig, h)
-    line = f"{summary['method']}: {summary['samples']} samples, lift {summary['lift_N']:.5g} N"
+        # A second signal after the stream ended (a double Ctrl-C) must not turn the written record
+        # into "nothing written": the rest of the command only reports; main() restores the defaults.
+        for sig in previous:
+            signal.signal(sig, handler)
+    line = f"{summary['method']}: {summary['samples']} samples, lift "
+    line += "n/a" if summary["lift_N"] is None else f"{summary['lift_N']:.5g} N"
     if summary["lift_std_N"] is not None:
         line += f" ± {summary['lift_std_N']:.2g}"
     line += f", stopped: {summary['stopped']} -> {args.out}"

@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from wingopt.cli import OUT_HELP
 from wingopt.problem import parse_mesh
 from wingopt.results import to_jsonable
 from wingopt.workflows.gains import gains_to_directory
@@ -39,7 +40,7 @@ def register(sub, common) -> None:
     p.add_argument("--r", type=float, help="input weight R = r I, V^-2 (default 1e-10)")
     p.add_argument("--weight-modes", type=int, help="modes in the state weight (default 20)")
     p.add_argument("--cache", help="directory to keep/reuse gains_<mesh>.npz")
-    p.add_argument("--out", required=True, help="output directory (replaced atomically)")
+    p.add_argument("--out", required=True, help=OUT_HELP)
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     p.set_defaults(func=run)
 

@@ -12,7 +12,7 @@ import argparse
 import json
 import re
 
-from wingopt.cli import follow
+from wingopt.cli import OUT_HELP, follow
 from wingopt.errors import InputError
 from wingopt.estimation.registry import METHOD_ALIASES, METHODS, MODEL_ALIASES, MODELS
 from wingopt.optim.registry import solver_names
@@ -170,7 +170,7 @@ def register(sub, common) -> None:
         "--max-memory", metavar="SIZE", help="refuse runs estimated to need more (e.g. 4G; default: what is available)"
     )
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
-    p.add_argument("--out", required=True, help="output directory (replaced atomically)")
+    p.add_argument("--out", required=True, help=OUT_HELP)
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     follow.add_options(p)
     p.set_defaults(func=run)
@@ -207,7 +207,7 @@ def run(args) -> int:
     from wingopt.results.writer import check_writable
     from wingopt.workflows.identify import identify, write_identify_outputs
 
-    check_writable(args.out)
+    check_writable(args.out, inputs=[("--data", args.data), ("--follow", args.follow), ("problem", args.problem)])
     options = identify_options(args)
     problem = load_problem(args.problem)
     if problem.kind != "membrane":

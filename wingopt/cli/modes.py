@@ -6,6 +6,7 @@ import argparse
 import json
 import time
 
+from wingopt import resources
 from wingopt.errors import InputError
 from wingopt.models import build_model
 from wingopt.problem import load_problem, parse_mesh
@@ -40,6 +41,8 @@ def run(args) -> int:
     nodes = parse_mesh(args.mesh) if args.mesh is not None else None
     if args.count < 1:
         raise InputError(f"count = {args.count}: expected a positive integer")
+    resources.check_count("--count", args.count, "modes")
+    resources.check(resources.estimate_modes(nodes or problem.nodes, problem.kind, knob="--mesh"))
     t0 = time.perf_counter()
     model = build_model(problem, nodes)
     freqs = model.frequencies_hz(args.count)

@@ -12,6 +12,7 @@ import json
 import math
 
 from wingopt import resources
+from wingopt.cli import OUT_HELP
 from wingopt.errors import InputError
 from wingopt.optim.registry import BACKENDS, FALLBACK
 from wingopt.plate.shapes import SHAPES
@@ -68,7 +69,7 @@ def register(sub, common) -> None:
         "--max-memory", metavar="SIZE", help="refuse runs estimated to need more (e.g. 4G; default: what is available)"
     )
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
-    p.add_argument("--out", required=True, help="output directory (replaced atomically)")
+    p.add_argument("--out", required=True, help=OUT_HELP)
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     p.set_defaults(func=run)
 

@@ -82,7 +82,12 @@ def register(sub, common) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("spec", help="sweep spec (TOML)")
-    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument(
+        "--out",
+        required=True,
+        help="output directory: new, empty or an earlier sweep's (it may hold only the files wingopt wrote there, "
+        "unchanged: a file of yours there is refused, never overwritten)",
+    )
     p.add_argument("--resume", action="store_true", help="keep DIR/records.jsonl and run only what is missing")
     add_engine_options(p)
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
@@ -96,7 +101,11 @@ def run(args) -> int:
 
     if args.workers is not None and args.workers < 1:
         raise InputError(f"workers = {args.workers}: expected a positive integer")
+    from wingopt.results import check_writable
+    from wingopt.workflows.sweep.run import spec_inputs
+
     spec = load_spec(args.spec)
+    check_writable(args.out, inputs=spec_inputs(spec))  # before the engine starts
     settings = engine_settings(args, args.workers, spec.cluster, spec.retries)
 
     def show(rec):

@@ -23,20 +23,49 @@ __all__ = ["lqr", "dlqr", "lqe", "dlqe"]
 log = logging.getLogger(__name__)
 
 
+def _matrix(name: str, value, ndim: int = 2) -> np.ndarray:
+    """``value`` as a real float matrix (a scalar or vector made 2-D only for the weights)."""
+    try:
+        arr = np.asarray(value)
+    except Exception:  # noqa: BLE001 - anything numpy cannot read is the caller's mistake
+        arr = None
+    if arr is None or arr.dtype.kind not in "biuf":
+        what = "complex" if arr is not None and arr.dtype.kind == "c" else type(value).__name__
+        raise InputError(f"{name}: got {what}: expected a real matrix of numbers")
+    arr = arr.astype(float)
+    if ndim == 0:
+        arr = np.atleast_2d(arr)
+    if arr.ndim != 2:
+        raise InputError(f"{name}: {arr.ndim}-D array of shape {arr.shape}: expected a 2-D matrix")
+    if not np.all(np.isfinite(arr)):
+        raise InputError(f"{name}: holds NaN or inf: expected finite numbers")
+    return arr
+
+
 def _system_matrices(args) -> tuple[np.ndarray, np.ndarray, tuple]:
-    if isinstance(args[0], StateSpace):
-        return args[0].A, args[0].B, args[1:]
-    if hasattr(args[0], "A") and hasattr(args[0], "B"):  # e.g. a python-control StateSpace
-        return np.asarray(args[0].A, float), np.asarray(args[0].B, float), args[1:]
-    return np.asarray(args[0], float), np.asarray(args[1], float), args[2:]
+    if not args:
+        raise InputError("expected lqr(sys, Q, R[, N]) or lqr(A, B, Q, R[, N]): no arguments given")
+    if isinstance(args[0], StateSpace) or (hasattr(args[0], "A") and hasattr(args[0], "B")):
+        A, B, rest = _matrix("A", args[0].A), _matrix("B", args[0].B), args[1:]
+    elif len(args) < 4:
+        raise InputError(
+            f"expected lqr(sys, Q, R[, N]) or lqr(A, B, Q, R[, N]): got {len(args)} argument(s) (B, Q, R missing?)"
+        )
+    else:
+        A, B, rest = _matrix("A", args[0]), _matrix("B", args[1]), args[2:]
+    if A.shape[0] != A.shape[1]:
+        raise InputError(f"A: shape {A.shape}, expected a square matrix")
+    if B.shape[0] != A.shape[0]:
+        raise InputError(f"B: shape {B.shape}, expected ({A.shape[0]}, m): one row per state of A {A.shape}")
+    return A, B, rest
 
 
 def _weights(A, B, rest):
     if len(rest) not in (2, 3):
         raise InputError("expected lqr(sys, Q, R[, N]) or lqr(A, B, Q, R[, N])")
-    Q = np.atleast_2d(np.asarray(rest[0], float))
-    R = np.atleast_2d(np.asarray(rest[1], float))
-    N = np.atleast_2d(np.asarray(rest[2], float)) if len(rest) == 3 else np.zeros((A.shape[0], B.shape[1]))
+    Q = _matrix("Q", rest[0], ndim=0)
+    R = _matrix("R", rest[1], ndim=0)
+    N = _matrix("N", rest[2], ndim=0) if len(rest) == 3 else np.zeros((A.shape[0], B.shape[1]))
     n, m = B.shape
     for name, mat, shape in (("Q", Q, (n, n)), ("R", R, (m, m)), ("N", N, (n, m))):
         if mat.shape != shape:
@@ -135,14 +164,25 @@ def dlqr(*args, rtol: float = RTOL):
     return K, S, np.linalg.eigvals(A - B @ K)
 
 
+def _estimator_matrices(A, G, C, QN):
+    A, G, C, QN = _matrix("A", A), _matrix("G", G), _matrix("C", C), _matrix("QN", QN, ndim=0)
+    n = A.shape[0]
+    if A.shape != (n, n) or G.shape[0] != n or C.shape[1] != n or QN.shape != (G.shape[1], G.shape[1]):
+        raise InputError(
+            f"shapes A {A.shape}, G {G.shape}, C {C.shape}, QN {QN.shape}: expected A (n, n), G (n, g), C (p, n), "
+            "QN (g, g)"
+        )
+    return A, G, C, QN
+
+
 def lqe(A, G, C, QN, RN):
     """Steady-state Kalman gain of ``x' = Ax + Gw, y = Cx + v`` (``E ww' = QN, E vv' = RN``).
 
     Returns ``L, P, E``: gain of ``x_hat' = A x_hat + L (y - C x_hat)``, error covariance, and
     the eigenvalues of ``A - L C``.
     """
-    A, G, C = (np.asarray(a, float) for a in (A, G, C))
-    K, P, _ = lqr(A.T, C.T, G @ np.atleast_2d(QN) @ G.T, RN)
+    A, G, C, QN = _estimator_matrices(A, G, C, QN)
+    K, P, _ = lqr(A.T, C.T, G @ QN @ G.T, RN)
     L = K.T
     return L, P, np.linalg.eigvals(A - L @ C)
 
@@ -150,7 +190,7 @@ def lqe(A, G, C, QN, RN):
 def dlqe(A, G, C, QN, RN):
     """Discrete steady-state Kalman filter: returns ``L, P, E`` with the *predictor* gain
     ``L = A P C' (C P C' + RN)^-1`` and ``P`` the a-priori error covariance."""
-    A, G, C = (np.asarray(a, float) for a in (A, G, C))
-    K, P, _ = dlqr(A.T, C.T, G @ np.atleast_2d(QN) @ G.T, RN)
+    A, G, C, QN = _estimator_matrices(A, G, C, QN)
+    K, P, _ = dlqr(A.T, C.T, G @ QN @ G.T, RN)
     L = K.T
     return L, P, np.linalg.eigvals(A - L @ C)

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from wingopt import resources
 from wingopt.design.candidates import CandidateSet, parse_candidates
 from wingopt.design.criteria import LINEAR_CRITERIA, LinearCriterion
 from wingopt.design.information import InformationSettings, ModalSensitivity, SegmentInformation
@@ -40,6 +41,10 @@ CRITERIA = ("risk", *LINEAR_CRITERIA)
 
 DEFAULT_LENGTH = 0.2
 """Default length scale of the load prior and of the nominal loads, as a fraction of the chord."""
+
+
+MAX_COUNT, MAX_NOMINAL = 1000, 1000
+"""Most sensors one design may place (as many as a problem file may list), and nominal loads."""
 
 
 @dataclass(frozen=True)
@@ -86,6 +91,10 @@ class DesignSettings:
             raise InputError(f"aggregate = {self.aggregate!r}: expected 'mean' or 'max'")
         if self.nominal_count is not None and not (isinstance(self.nominal_count, int) and self.nominal_count >= 1):
             raise InputError(f"nominal_count = {self.nominal_count!r}: expected a positive integer")
+        if self.nominal_count is not None and self.nominal_count > MAX_NOMINAL:
+            raise InputError(
+                f"nominal_count = {self.nominal_count}: more than the limit of {MAX_NOMINAL} nominal loads"
+            )
         if self.length_scale is not None and not self.length_scale > 0:
             raise InputError(f"length_scale = {self.length_scale!r}: expected a positive length (m)")
 
@@ -210,13 +219,22 @@ def design_sensors(
         raise InputError(
             f"problem: sensor design needs a membrane problem, got kind {getattr(problem, 'kind', None)!r}"
         )
+    if settings is not None and not isinstance(settings, DesignSettings):
+        raise InputError(f"settings = {settings!r}: expected a DesignSettings or None")
     s = settings or DesignSettings()
     if overrides:
         import dataclasses
 
+        for key in sorted(set(overrides) - {f.name for f in dataclasses.fields(DesignSettings)}):
+            raise InputError(f"{key}: not a DesignSettings field")
         s = dataclasses.replace(s, **overrides)
-    if not (isinstance(count, (int, np.integer)) and count >= 1):
+    if isinstance(count, bool) or not (isinstance(count, (int, np.integer)) and count >= 1):
         raise InputError(f"count = {count!r}: expected a positive number of sensors")
+    if count > MAX_COUNT:
+        raise InputError(f"count = {count}: more than the limit of {MAX_COUNT} sensors to design")
+    if candidates is not None and not isinstance(candidates, (str, CandidateSet)):
+        raise InputError(f"candidates = {candidates!r}: expected a CandidateSet, a --candidates SPEC string or None")
+    resources.check(resources.estimate_modes(problem.nodes, "membrane", knob="mesh"))
     t0 = time.perf_counter()
     log.info("design: %d sensors, criterion %s", count, s.criterion)
     timings: dict[str, float] = {}
@@ -226,6 +244,8 @@ def design_sensors(
     cands, default_idx = _with_problem_sensors(problem, candidates)
     if count > len(cands):
         raise InputError(f"count = {count}: more than the {len(cands)} candidates")
+    nominal = s.nominal_count or (12 if s.criterion == "risk" else 4)
+    resources.check(resources.estimate_design(problem.nodes, len(cands), nominal, count))
     model = MembraneModel.from_problem(problem.with_sensors(()))
     sens = ModalSensitivity.from_model(model, s.information)
     chat = sens.modal_matrices(cands.rects)

@@ -167,7 +167,10 @@ class IdentifyOptions:
         if self.load_space is not None:
             _choice("load_space", self.load_space, ("fixed", "free"))
         if self.noise_std is not None:
-            set_("noise_std", _positive("noise_std", self.noise_std))
+            sd = _positive("noise_std", self.noise_std)
+            if not 1e-12 <= sd <= 0.5:  # stretch units: readings are 1e-4..1e-1, 0.5 is refused as a reading
+                raise InputError(f"noise_std = {self.noise_std!r}: expected a sensor noise std from 1e-12 to 0.5")
+            set_("noise_std", sd)
         if self.initial_load is not None:
             try:
                 p0 = float(self.initial_load)

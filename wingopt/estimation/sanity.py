@@ -35,6 +35,8 @@ __all__ = [
     "sensitivity_correlation",
     "layout_warnings",
     "units_warnings",
+    "scale_warnings",
+    "SCALE_BAND",
     "fit_warnings",
     "noise_warnings",
     "residual_chi2_per_datum",
@@ -86,13 +88,19 @@ def as_measurements(data, names: Sequence[str]):
         if tuple(data.sensor_names) != tuple(names):
             raise InputError(f"data: sensors {list(data.sensor_names)}: expected the problem's {list(names)}")
         return data
+    expected = "expected a CSV path, a Measurements or an array of rows t, " + ", ".join(names)
     try:
-        arr = np.asarray(data, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(
-            f"data: got {type(data).__name__}: expected a CSV path, a Measurements or an array of rows t, "
-            + ", ".join(names)
-        ) from None
+        raw = np.asarray(data)
+    except Exception:  # noqa: BLE001 - ragged lists and the like: the caller's mistake
+        raw = None
+    if raw is None or raw.dtype.kind not in "biuf":
+        kind = {"c": " of complex numbers", "U": " of text", "S": " of bytes"}.get(
+            getattr(raw, "dtype", np.dtype("O")).kind, ""
+        )
+        raise InputError(f"data: got {type(data).__name__}{kind}: {expected} (real numbers)")
+    arr = raw.astype(float)
+    if arr.size > 10**9:
+        raise InputError(f"data: {arr.size} values: more than the limit of 1e9")
     if arr.ndim != 2 or arr.shape[1] != 1 + len(names) or arr.shape[0] < 2:
         raise InputError(
             f"data: array of shape {arr.shape}: expected (N, {1 + len(names)}) rows t, {', '.join(names)} with N >= 2"
@@ -214,8 +222,36 @@ def layout_warnings(rects, names: Sequence[str], width: float, height: float, co
     return out
 
 
+SCALE_BAND = 1.0e-3
+"""A record's peak stretch below ``SCALE_BAND`` times the membrane's pre-strain is warned about, as one
+above the pre-strain is: one plausibility band, ``[prestrain / 1000, prestrain]``, both ways. The
+shipped and simulated records peak at 0.004–0.1 (pre-strain 0.05; band 5e-5..0.05); the shipped
+record times 1e-3 (4e-6) gave a lift 30 times too small, times 1e-6 a lift 1000 times too small
+(the load goes with the square root of the stretch), both silently before."""
+
+
+def scale_warnings(peak: float, name: str, prestrain: float) -> list[str]:
+    """The plausibility band of a record's peak stretch reading (:data:`SCALE_BAND`), both ways."""
+    if not np.isfinite(peak) or peak <= 0:
+        return []
+    if peak > prestrain:
+        return [
+            f"sensor {name} reads up to {peak:.3g}, more than the membrane's pre-strain {prestrain:g}: the linear "
+            "model does not hold there; are the values in another unit (percent: divide by 100)?"
+        ]
+    low = SCALE_BAND * prestrain
+    if peak < low:
+        return [
+            f"sensor readings peak at {peak:.3g} (sensor {name}), implausibly small: below {low:.2g}, 1/1000 of the "
+            f"membrane's pre-strain {prestrain:g} (records peak at 1e-4..1e-1); are the values in another unit or "
+            "scale (multiplied by 1e-3 or 1e-6)? The load goes with the square root of the stretch: a wrong scale "
+            "gives a lift wrong by its square root"
+        ]
+    return []
+
+
 def units_warnings(values: np.ndarray, names: Sequence[str], prestrain: float) -> list[str]:
-    """Warn when the stretch exceeds the membrane's pre-strain (percent values?), refuse beyond 0.5.
+    """Refuse a stretch beyond 0.5; warn when the peak is outside the plausibility band (:func:`scale_warnings`).
 
     The linear membrane model keeps the tension of the pre-strain: the extra strain of the deflection,
     which is what a stretch sensor reads, must stay well below it. The shipped record peaks at 0.0043
@@ -232,12 +268,7 @@ def units_warnings(values: np.ndarray, names: Sequence[str], prestrain: float) -
             f"data: sensor {names[j]} values up to {peak:.4g}: expected the dimensionless stretch "
             "s = alpha/(2A) ∫|grad w|^2 (typically 1e-4..1e-1); are the values in percent or microstrain?"
         )
-    if peak > prestrain:
-        return [
-            f"sensor {names[j]} reads up to {peak:.3g}, more than the membrane's pre-strain {prestrain:g}: the linear "
-            "model does not hold there; are the values in percent (divide by 100)?"
-        ]
-    return []
+    return scale_warnings(peak, names[j], prestrain)
 
 
 def residual_chi2_per_datum(predicted: np.ndarray, measured: np.ndarray, sigma: np.ndarray) -> float:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import os
 import re
 import warnings
 from dataclasses import dataclass, field
@@ -75,19 +76,45 @@ def _cell(text: str, line: int, column: str, path: str) -> float:
     return v
 
 
+def _iter(values):
+    try:
+        return list(values)
+    except TypeError:
+        return [None]
+
+
+MAX_LINE_CHARS = 1 << 20
+"""Longest line of a CSV record (1 MiB: a row of a few thousand sensors); longer is refused."""
+
+
 def _read_text(path: str | Path) -> str:
     p = Path(path)
     name = str(path)
     if p.is_dir():
         raise DataFileError(f"data = {name!r}: is a directory, expected a CSV file")
+    if p.exists() and not p.is_file():
+        raise DataFileError(f"data = {name!r}: not a regular file (a device, a pipe): expected a CSV file")
     if not p.is_file():
         raise DataFileError(f"data = {name!r}: no such file")
     try:
-        return p.read_text(encoding="utf-8-sig")
+        text = p.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
         raise DataFileError(f"{name}: not a text (UTF-8) CSV file") from None
     except OSError as exc:
         raise DataFileError(f"{name}: cannot read: {exc.strerror}") from None
+    # A window of MAX_LINE_CHARS characters without a newline: a line at least that long (any line
+    # twice as long is caught; L / MAX_LINE_CHARS fast searches, nothing copied).
+    for start in range(0, len(text) - MAX_LINE_CHARS + 1, MAX_LINE_CHARS):
+        if text.find("\n", start, start + MAX_LINE_CHARS) < 0:
+            number = text.count("\n", 0, start) + 1
+            raise DataFileError(
+                f"{name}:{number}: a line longer than {MAX_LINE_CHARS} characters: not a CSV of sensor readings "
+                "(a header or a row of a few sensors is short)"
+            )
+    if "\0" in text:
+        line = text.count("\n", 0, text.index("\0")) + 1
+        raise DataFileError(f"{name}:{line}: a NUL byte: not a text CSV file")
+    return text
 
 
 _EMPTY_CELL = re.compile(r"(?<=,)[ \t]*(?=,|$)|^[ \t]*(?=,)", re.MULTILINE)
@@ -158,6 +185,15 @@ def read_measurements(path: str | Path, sensor_names: tuple[str, ...] | list[str
     CsvReport
         What was read: rows, missing rows and gaps, ignored columns.
     """
+    if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)) or not str(path).strip():
+        raise DataFileError(f"path = {path!r}: expected the path of a CSV file")
+    if isinstance(sensor_names, (str, bytes)) or not all(isinstance(n, str) for n in _iter(sensor_names)):
+        raise DataFileError(
+            f"sensor_names = {sensor_names!r}: expected a sequence of sensor names, e.g. ('S1', 'S2', 'S3', 'S4')"
+        )
+    sensor_names = tuple(sensor_names)
+    if not sensor_names:
+        raise DataFileError("sensor_names = (): expected at least one sensor name")
     name = str(path)
     text = _read_text(path)
     fast = _fast_table(path, text, sensor_names)

@@ -26,6 +26,10 @@ END_MARKER = "# end"
 _END = re.compile(r"#\s*end\s*", re.IGNORECASE)
 _JITTER = 0.01  # as the batch reader: relative deviation of a step from a whole multiple of dt
 
+MAX_GAP_SAMPLES = 100_000
+"""Longest gap (in samples) a stream may have: filling it costs one estimator step per sample; a
+longer one (a clock reset, seconds written as milliseconds) ends the stream with an error."""
+
 
 class CsvRowParser:
     """Turns CSV lines into uniformly sampled rows ``(t, values)``; one instance per stream.
@@ -59,6 +63,13 @@ class CsvRowParser:
         self._t0 = self._dt = None
         self._index = 0  # sample index of the last row on the uniform grid
         self._t_last = None
+        self._new_file = False
+
+    def new_file(self) -> None:
+        """The lines now come from a new file (the followed file was truncated or rotated): its
+        first line may be the header again (read anew: the columns may move); times go on."""
+        self._new_file = True
+        self.line = 0
 
     @property
     def dt(self) -> float | None:
@@ -78,7 +89,15 @@ class CsvRowParser:
             return []
         if self.ended:
             raise DataFileError(f"{self.source}:{self.line}: data after the end marker {END_MARKER!r}")
-        row = next(csv.reader([text]))
+        try:
+            row = next(csv.reader([text]))
+        except csv.Error as exc:
+            raise DataFileError(f"{self.source}:{self.line}: not a CSV line ({exc})") from None
+        if self._new_file:
+            self._new_file = False
+            if "t" in (h.strip() for h in row):  # the header again, at the top of the new file
+                self._header(row)
+                return []
         if self._cols is None:
             self._header(row)
             return []
@@ -117,6 +136,11 @@ class CsvRowParser:
             if self._dt is None:
                 self._dt = step
             ratio = step / self._dt
+            if not ratio <= MAX_GAP_SAMPLES:
+                raise DataFileError(
+                    f"{name}:{ln}: t = {t!r} after {self._t_last!r}: a gap of {ratio:.3g} samples (more than "
+                    f"{MAX_GAP_SAMPLES}): expected a stream with short gaps (was the clock reset, or the unit changed?)"
+                )
             whole = round(ratio)
             if whole < 1 or abs(ratio - whole) > _JITTER:
                 raise DataFileError(

@@ -11,6 +11,16 @@ from wingopt.errors import InputError
 __all__ = ["Measurements"]
 
 
+def _real(name: str, value) -> np.ndarray:
+    try:
+        arr = np.asarray(value)
+    except Exception:  # noqa: BLE001 - ragged input: the caller's mistake
+        arr = None
+    if arr is None or arr.dtype.kind not in "biuf":
+        raise InputError(f"measurements: {name} of {type(value).__name__}: expected real numbers")
+    return arr.astype(float)
+
+
 @dataclass(frozen=True, eq=False)
 class Measurements:
     """Stretch-sensor time series.
@@ -36,8 +46,12 @@ class Measurements:
     source: str = ""
 
     def __post_init__(self) -> None:
-        t = np.asarray(self.t, dtype=float)
-        v = np.asarray(self.values, dtype=float)
+        t, v = _real("t", self.t), _real("values", self.values)
+        names = self.sensor_names
+        if not isinstance(names, (list, tuple)) or not all(isinstance(n, str) for n in names):
+            raise InputError(f"sensor_names = {self.sensor_names!r}: expected a sequence of names, e.g. ('S1', 'S2')")
+        if not np.all(np.isfinite(t)):
+            raise InputError("t: holds NaN or inf: every sample needs a time")
         if t.ndim != 1 or v.ndim != 2 or v.shape[0] != t.size:
             raise InputError(f"measurements: t has shape {t.shape} and values {v.shape}, expected (N,) and (N, p)")
         if v.shape[1] != len(self.sensor_names):

@@ -69,10 +69,19 @@ class MembraneModel:
 
     @classmethod
     def from_problem(cls, problem: MembraneProblem, nodes: tuple[int, int] | None = None) -> MembraneModel:
-        """Assemble the model of ``problem`` (on ``nodes`` instead of the problem's mesh if given)."""
+        """Assemble the model of ``problem`` (on ``nodes`` instead of the problem's mesh if given).
+
+        A problem of another kind, a malformed mesh and a mesh that cannot fit in memory
+        (:func:`wingopt.resources.estimate_modes`) raise an :class:`~wingopt.errors.InputError`.
+        """
+        from wingopt import resources
+        from wingopt.problem import as_problem
+
         t0 = time.perf_counter()
+        problem = as_problem(problem, "membrane")
         if nodes is not None:
             problem = problem.with_mesh(nodes)
+        resources.check(resources.estimate_modes(problem.nodes, "membrane", knob="mesh"))
         space = membrane_space(problem.width, problem.height, problem.nodes)
         T = problem.material.tension
         gram = assemble(space, separable((1.0, VALUE, VALUE)))

@@ -121,10 +121,19 @@ class PlateModel:
 
     @classmethod
     def from_problem(cls, problem: PlateProblem, nodes: tuple[int, int] | None = None) -> PlateModel:
-        """Assemble the model of ``problem`` (on ``nodes`` instead of the problem's mesh if given)."""
+        """Assemble the model of ``problem`` (on ``nodes`` instead of the problem's mesh if given).
+
+        A problem of another kind, a malformed mesh and a mesh that cannot fit in memory
+        (:func:`wingopt.resources.estimate_modes`) raise an :class:`~wingopt.errors.InputError`.
+        """
+        from wingopt import resources
+        from wingopt.problem import as_problem
+
         t0 = time.perf_counter()
+        problem = as_problem(problem, "plate")
         if nodes is not None:
             problem = problem.with_mesh(nodes)
+        resources.check(resources.estimate_modes(problem.nodes, "plate", knob="mesh"))
         space = plate_space(problem.width, problem.length, problem.nodes)
         props = cell_properties(problem, space)
         cells = props.cells

@@ -18,6 +18,7 @@ from wingopt.problem.membrane import MembraneProblem
 
 __all__ = [
     "load_problem",
+    "as_problem",
     "read_problem_table",
     "parse_problem",
     "parse_mesh",
@@ -52,10 +53,19 @@ def builtin_problems() -> list[str]:
 
 
 def _resolve(problem: str | Path) -> Path:
+    if isinstance(problem, bytes) or not isinstance(problem, (str, Path)) or not str(problem).strip():
+        raise ProblemFileError(
+            f"problem = {problem!r}: expected a problem file (.toml) path or a built-in name "
+            f"({', '.join(builtin_problems())})"
+        )
+    if "\0" in str(problem):
+        raise ProblemFileError(f"problem = {problem!r}: not a file name (holds a NUL character)")
     path = Path(problem)
     if path.suffix == ".toml" or path.exists():
         if path.is_dir():
             raise ProblemFileError(f"problem = {str(problem)!r}: is a directory, expected a .toml file")
+        if path.exists() and not path.is_file():
+            raise ProblemFileError(f"problem = {str(problem)!r}: not a regular file (a device, a pipe)")
         if not path.is_file():
             raise ProblemFileError(f"problem = {str(problem)!r}: no such file")
         return path
@@ -64,6 +74,21 @@ def _resolve(problem: str | Path) -> Path:
         return builtin
     names = ", ".join(builtin_problems()) or "none found"
     raise ProblemFileError(f"problem = {str(problem)!r}: expected a .toml file or a built-in name ({names})")
+
+
+def as_problem(problem, kind: str | None = None, name: str = "problem"):
+    """A loaded problem of ``kind`` (a path or built-in name is loaded); an :class:`InputError` naming
+    ``name`` for anything else (``None``, a dict, a problem of another kind)."""
+    if isinstance(problem, (str, Path)):
+        problem = load_problem(problem)
+    got = getattr(problem, "kind", None)
+    if got not in _KINDS or not hasattr(problem, "nodes"):
+        raise InputError(
+            f"{name} = {type(problem).__name__}: expected a problem from wingopt.load_problem (or its file or name)"
+        )
+    if kind is not None and got != kind:
+        raise InputError(f"{name}: expected a {kind} problem, got a {got} problem ({getattr(problem, 'name', '')!r})")
+    return problem
 
 
 def parse_problem(data: dict[str, Any], source: str = "<memory>", name: str = "problem"):
@@ -98,6 +123,12 @@ def read_problem_table(problem: str | Path) -> dict[str, Any]:
 
 
 def _read(path: Path) -> dict[str, Any]:
+    from wingopt.resources import check_input_file
+
+    try:
+        check_input_file(path, "problem")
+    except InputError as exc:
+        raise ProblemFileError(str(exc)) from None
     try:
         with open(path, "rb") as fh:
             return tomllib.load(fh)

@@ -51,7 +51,10 @@ class Table:
 
     def error(self, key: str, value: Any, expected: str) -> ProblemFileError:
         """An error naming this table's ``key``, the offending ``value`` and what was expected."""
-        return ProblemFileError(f"{self.source}: {self._where(self.path)}{key} = {value!r}: expected {expected}")
+        text = repr(value)
+        if len(text) > 80:  # a 20000-character name: its start says enough
+            text = text[:60] + f"... ({len(text)} characters)"
+        return ProblemFileError(f"{self.source}: {self._where(self.path)}{key} = {text}: expected {expected}")
 
     def has(self, key: str) -> bool:
         return key in self._data

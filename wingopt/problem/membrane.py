@@ -113,7 +113,9 @@ class MembraneProblem:
 
     def with_mesh(self, nodes: tuple[int, int]) -> MembraneProblem:
         """The same problem on another mesh (nodes in x, y)."""
-        return dataclasses.replace(self, nodes=tuple(nodes))
+        from wingopt.validate import check_nodes
+
+        return dataclasses.replace(self, nodes=check_nodes(nodes))
 
     def with_sensors(self, sensors) -> MembraneProblem:
         return dataclasses.replace(self, sensors=tuple(sensors))
@@ -121,6 +123,12 @@ class MembraneProblem:
     @property
     def sensor_names(self) -> tuple[str, ...]:
         return tuple(s.name for s in self.sensors)
+
+
+MAX_SENSORS = 1000
+"""Most ``[[sensors]]`` a problem may have (each adds a sensor operator and a CSV column)."""
+MAX_NAME = 100
+"""Longest sensor name (it is a CSV column header and appears in messages)."""
 
 
 def from_table(root: Table, name: str) -> MembraneProblem:
@@ -148,10 +156,15 @@ def from_table(root: Table, name: str) -> MembraneProblem:
     mesh.finish()
 
     sensors = []
-    for t in root.tables("sensors", []):
+    tables = root.tables("sensors", [])
+    if len(tables) > MAX_SENSORS:
+        raise root.error("sensors", f"{len(tables)} [[sensors]]", f"at most {MAX_SENSORS} sensors")
+    for t in tables:
         sname = t.string("name")
         if sname.strip().lower() in ("t", "time") or not sname.strip() or any(c in sname for c in ',"#\n'):
             raise t.error("name", sname, "a sensor name other than 't'/'time' (the CSV time column), without , \" #")
+        if not sname.isprintable() or len(sname) > MAX_NAME:
+            raise t.error("name", sname, f"a sensor name of printable characters, at most {MAX_NAME} of them")
         sensors.append(
             StretchSensorSpec(
                 name=sname,

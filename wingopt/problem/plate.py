@@ -204,7 +204,9 @@ class PlateProblem:
 
     def with_mesh(self, nodes: tuple[int, int]) -> PlateProblem:
         """The same problem on another mesh (nodes in x, y)."""
-        return dataclasses.replace(self, nodes=tuple(int(n) for n in nodes))
+        from wingopt.validate import check_nodes
+
+        return dataclasses.replace(self, nodes=check_nodes(nodes))
 
     def replace(self, **changes) -> PlateProblem:
         """A copy with fields replaced (``dataclasses.replace``)."""

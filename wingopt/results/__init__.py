@@ -1,8 +1,10 @@
 """Results: atomic output directories and files, JSON/CSV writers, plots and reports."""
 
+from wingopt.results.owned import OwnedDirectory
 from wingopt.results.writer import (
     ResultDirectory,
     check_file_writable,
+    check_new_file,
     check_writable,
     to_jsonable,
     write_arrays_atomic,
@@ -14,6 +16,7 @@ from wingopt.results.writer import (
 )
 
 __all__ = [
+    "OwnedDirectory",
     "ResultDirectory",
     "check_file_writable",
     "check_writable",
@@ -24,4 +27,5 @@ __all__ = [
     "write_json",
     "write_json_atomic",
     "write_text_atomic",
+    "check_new_file",
 ]

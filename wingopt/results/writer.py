@@ -1,11 +1,14 @@
-"""Atomic result directories: a run writes into a hidden sibling and swaps it in on success.
+"""Result directories and files: every write of the package goes through here.
 
-A failed or interrupted run therefore never leaves a half-written output directory and never
-destroys the results of an earlier run at the same place. wingopt only ever replaces what it
-wrote itself: a result directory carries a marker file (:data:`MARKER`), and an existing
-directory without it (a project folder, the working directory) is refused, never emptied.
-Hidden work directories left by a killed run (``.NAME.tmp-PID-*``, ``.NAME.old-PID``) are
-removed by the next run at the same place once their process is gone.
+A run writes into a hidden sibling of its output directory and swaps it in on success, so a failed
+or interrupted run never leaves a half-written directory and never destroys the results of an
+earlier run. What may be replaced is decided by one rule, :mod:`wingopt.results.ownership`: a
+directory carries the manifest of the files wingopt wrote there (:data:`MARKER`), and it is
+replaced only if it holds nothing else and nothing changed; an input of the run is never inside
+it; a single output file onto an existing one is refused without ``force`` (and kept as
+``NAME.bak`` with it). Studies and caches, which grow file by file, use :class:`~wingopt.results.owned.OwnedDirectory`.
+Hidden work directories left by a killed run (``.NAME.tmp-PID-*``, ``.NAME.old-PID``) are removed
+by the next run at the same place once their process is gone.
 """
 
 from __future__ import annotations
@@ -24,6 +27,17 @@ from typing import Any
 import numpy as np
 
 from wingopt.errors import OutputError
+from wingopt.results.ownership import (
+    MARKER,
+    backup_name,
+    check_inputs_outside,
+    check_new_file,
+    check_owned,
+    first_foreign,
+    read_manifest,
+    scan,
+    write_manifest,
+)
 
 __all__ = [
     "ResultDirectory",
@@ -36,13 +50,11 @@ __all__ = [
     "write_atomic",
     "write_json_atomic",
     "write_arrays_atomic",
+    "check_new_file",
     "MARKER",
 ]
 
 log = logging.getLogger(__name__)
-
-MARKER = ".wingopt-result"
-"""File in every directory wingopt writes; only directories holding it are ever replaced."""
 
 
 def to_jsonable(obj: Any) -> Any:
@@ -76,43 +88,39 @@ def _is_ours(path: Path) -> bool:
     return (path / MARKER).is_file()
 
 
-def check_writable(target: str | os.PathLike) -> Path:
+def check_writable(target: str | os.PathLike, *, inputs: Iterable = (), what: str = "out") -> Path:
     """Raise :class:`OutputError` unless ``target`` can become a new (or replaced) directory.
 
     Allowed: a path that does not exist (its nearest existing parent must be a writable directory),
-    an empty directory, or a directory wingopt wrote (it holds :data:`MARKER`). Refused: a file, a
-    non-empty directory wingopt did not write, the working directory or one of its parents, and a
-    mount point.
+    an empty directory, or a directory wingopt wrote that holds nothing else, unchanged
+    (:func:`~wingopt.results.ownership.check_owned`). Refused: a file, a directory with anything
+    wingopt did not write (named), the working directory or one of its parents, a mount point, and
+    a directory that holds one of the run's ``inputs`` (``(option, path)`` pairs or paths).
     """
+    if not isinstance(target, (str, os.PathLike)) or not str(target).strip() or "\0" in str(target):
+        raise OutputError(f"{what} = {target!r}: expected the path of a directory")
     given = str(target)
     target = Path(target).expanduser().resolve()
+    check_inputs_outside(target, given, inputs, what)
     if target.exists() and not target.is_dir():
-        raise OutputError(f"out = {given!r}: exists and is not a directory")
+        raise OutputError(f"{what} = {given!r}: exists and is not a directory")
     if target.is_dir():
         cwd = Path.cwd().resolve()
         if target == cwd or target in cwd.parents:
-            raise OutputError(f"out = {given!r}: is the working directory or contains it; give a new directory")
+            raise OutputError(f"{what} = {given!r}: is the working directory or contains it; give a new directory")
         if os.path.ismount(target):
-            raise OutputError(f"out = {given!r}: is a mount point; give a new directory inside it")
-        try:
-            empty = not any(target.iterdir())
-        except OSError as exc:
-            raise OutputError(f"out = {given!r}: cannot read it ({exc.strerror})") from None
-        if not empty and not _is_ours(target):
-            raise OutputError(
-                f"out = {given!r}: exists and was not written by wingopt (no {MARKER} file); "
-                "give a new directory (wingopt never deletes files it did not write)"
-            )
+            raise OutputError(f"{what} = {given!r}: is a mount point; give a new directory inside it")
+        check_owned(target, given, what)
     parent = target.parent
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
     if not parent.is_dir():
-        raise OutputError(f"out = {given!r}: {str(parent)!r} is a file, not a directory")
+        raise OutputError(f"{what} = {given!r}: {str(parent)!r} is a file, not a directory")
     # Probe by creating a directory: permission bits alone say nothing for root or read-only mounts.
     try:
         os.rmdir(tempfile.mkdtemp(prefix=".wingopt-probe-", dir=parent))
     except OSError as exc:
-        raise OutputError(f"out = {given!r}: directory {str(parent)!r} is not writable ({exc.strerror})") from None
+        raise OutputError(f"{what} = {given!r}: directory {str(parent)!r} is not writable ({exc.strerror})") from None
     return target
 
 
@@ -140,18 +148,22 @@ def _replace_with(target: Path, fill) -> None:
         raise
 
 
-def write_text_atomic(path: str | os.PathLike, text: str, *, what: str = "file", backup: bool = True):
-    """Write one text file atomically (a temporary sibling renamed into place).
+def write_text_atomic(
+    path: str | os.PathLike, text: str, *, what: str = "file", force: bool = False, inputs: Iterable = ()
+):
+    """Write one text file (``--write-problem``, ``--doc``) atomically: a temporary sibling renamed into place.
 
-    With ``backup``, an existing file is first copied to ``NAME.bak`` (replacing an earlier backup),
-    itself written atomically: at every moment the file is whole, old or new. Returns ``(path,
-    backup path or None)``; an ``OSError`` becomes an :class:`OutputError` naming ``what``.
+    The rule of :func:`~wingopt.results.ownership.check_new_file`: an existing file (or an input of
+    the run) is refused without ``force``; with it, the earlier file is first copied to ``NAME.bak``
+    (``NAME.bak.1``, ... when taken), itself written atomically, so at every moment the file is
+    whole, old or new. Returns ``(path, backup path or None)``; an ``OSError`` becomes an
+    :class:`OutputError` naming ``what``.
     """
-    target = check_file_writable(path, what)
+    target = check_new_file(path, what, force=force, inputs=inputs)
     kept = None
     try:
-        if backup and target.is_file():
-            kept = target.with_name(target.name + ".bak")
+        if target.is_file():
+            kept = backup_name(target)
             _replace_with(kept, lambda tmp: shutil.copyfile(target, tmp))
         _replace_with(target, lambda tmp: tmp.write_text(text))
     except OSError as exc:
@@ -237,9 +249,13 @@ def _os_error(target: Path, exc: OSError) -> OutputError:
 class ResultDirectory:
     """Context manager yielding a temporary directory that becomes ``target`` on success.
 
-    The directory gets :data:`MARKER` and the usual permissions (``0777 & ~umask``). An ``OSError``
-    while writing (disk full, quota, permissions) becomes an :class:`OutputError`; any exception,
-    ``KeyboardInterrupt`` and ``SystemExit`` included, removes the temporary directory.
+    ``target`` is checked first (:func:`check_writable`, with the run's ``inputs``) and again just
+    before it is replaced: a file that appeared there meanwhile is never deleted (the new results
+    are then left next to it, in ``NAME.new-PID``, and the error says so). The directory gets the
+    manifest of its files (:data:`MARKER`) and the usual permissions (``0777 & ~umask``). An
+    ``OSError`` while writing (disk full, quota, permissions) becomes an :class:`OutputError`; any
+    exception, ``KeyboardInterrupt`` and ``SystemExit`` included, removes the temporary directory
+    (:meth:`commit` first keeps what was written, for a stream that must keep its estimates).
 
     Examples
     --------
@@ -247,21 +263,72 @@ class ResultDirectory:
     ...     write_json(tmp / "summary.json", {"ok": True})
     """
 
-    def __init__(self, target: str | os.PathLike) -> None:
-        self.target = check_writable(Path(target))
+    def __init__(self, target: str | os.PathLike, inputs: Iterable = ()) -> None:
+        self.given = str(target)
+        self.inputs = list(inputs)
+        self.target = check_writable(target, inputs=self.inputs)
         self._tmp: Path | None = None
+        self.kept_at: Path | None = None
 
     def __enter__(self) -> Path:
         try:
             self.target.parent.mkdir(parents=True, exist_ok=True)
             clean_stale(self.target)
             self._tmp = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.tmp-{os.getpid()}-", dir=self.target.parent))
-            (self._tmp / MARKER).write_text("written by wingopt; this directory may be replaced by a later run\n")
+            write_manifest(self._tmp, {})
         except OSError as exc:
             if self._tmp is not None:
                 shutil.rmtree(self._tmp, ignore_errors=True)
             raise OutputError(f"out = {str(self.target)!r}: cannot create it ({exc.strerror})") from None
         return self._tmp
+
+    def commit(self) -> Path:
+        """Move what was written so far to ``target`` now (the ``with`` block then only cleans up)."""
+        assert self._tmp is not None
+        if not self._tmp.exists():
+            return self.target
+        old = None
+        try:
+            write_manifest(self._tmp, scan(self._tmp))
+            os.chmod(self._tmp, 0o777 & ~_umask())
+            if self.target.exists() or self.target.is_symlink():
+                found = None
+                if not self.target.is_dir() or self.target.is_symlink():
+                    found = (self.target.name, "which is not a directory wingopt wrote")
+                else:
+                    manifest = read_manifest(self.target)
+                    if manifest is None and any(self.target.iterdir()):
+                        found = (next(iter(sorted(p.name for p in self.target.iterdir()))), "created meanwhile")
+                    elif manifest is not None:
+                        found = (
+                            first_foreign(self.target, manifest)
+                            if manifest.get("files") is not None
+                            else (MARKER, "an older wingopt's marker")
+                        )
+                if found is not None:  # appeared since the check: keep it, and keep the new results too
+                    self.kept_at = self.target.with_name(f"{self.target.name}.new-{os.getpid()}")
+                    os.replace(self._tmp, self.kept_at)
+                    raise OutputError(
+                        f"out = {self.given!r}: now holds {found[0]!r} ({found[1]}), which wingopt never deletes; "
+                        f"the results are in {str(self.kept_at)!r}"
+                    )
+                old = self.target.parent / f".{self.target.name}.old-{os.getpid()}"
+                os.replace(self.target, old)
+            os.replace(self._tmp, self.target)
+        except BaseException as exc:
+            if old is not None and not self.target.exists():
+                os.replace(old, self.target)  # put the earlier results back
+                old = None
+            if self.kept_at is None:
+                shutil.rmtree(self._tmp, ignore_errors=True)
+            if isinstance(exc, OSError) and not isinstance(exc, OutputError):
+                raise _os_error(self.target, exc) from None
+            raise
+        finally:
+            if old is not None:
+                shutil.rmtree(old, ignore_errors=True)
+        log.info("results written to %s", self.target)
+        return self.target
 
     def __exit__(self, exc_type, exc, tb) -> bool:
         assert self._tmp is not None
@@ -270,25 +337,5 @@ class ResultDirectory:
             if issubclass(exc_type, OSError) and not issubclass(exc_type, OutputError):
                 raise _os_error(self.target, exc) from None
             return False
-        old = None
-        try:
-            os.chmod(self._tmp, 0o777 & ~_umask())
-            if self.target.exists():
-                if any(self.target.iterdir()) and not _is_ours(self.target):  # appeared since check_writable
-                    raise OutputError(f"out = {str(self.target)!r}: created meanwhile by something else; kept")
-                old = self.target.parent / f".{self.target.name}.old-{os.getpid()}"
-                os.replace(self.target, old)
-            os.replace(self._tmp, self.target)
-        except BaseException as exc:
-            if old is not None and not self.target.exists():
-                os.replace(old, self.target)  # put the earlier results back
-                old = None
-            shutil.rmtree(self._tmp, ignore_errors=True)
-            if isinstance(exc, OSError) and not isinstance(exc, OutputError):
-                raise _os_error(self.target, exc) from None
-            raise
-        finally:
-            if old is not None:
-                shutil.rmtree(old, ignore_errors=True)
-        log.info("results written to %s", self.target)
+        self.commit()
         return False

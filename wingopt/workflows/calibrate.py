@@ -27,24 +27,12 @@ from wingopt.measurements import Measurements, read_measurements
 from wingopt.membrane import MembraneModel
 from wingopt.problem import load_problem, read_problem_table
 from wingopt.problem.toml_text import table_text
-from wingopt.results import (
-    ResultDirectory,
-    check_file_writable,
-    check_writable,
-    to_jsonable,
-    write_json,
-    write_text_atomic,
-)
+from wingopt.results import ResultDirectory, check_new_file, to_jsonable, write_json, write_text_atomic
+from wingopt.validate import check_number
 
 log = logging.getLogger(__name__)
 
-__all__ = [
-    "CalibrationRun",
-    "calibrate_membrane",
-    "calibrated_problem_text",
-    "check_outputs",
-    "write_calibration_outputs",
-]
+__all__ = ["CalibrationRun", "calibrate_membrane", "calibrated_problem_text", "write_calibration_outputs"]
 
 
 @dataclass(eq=False)
@@ -112,6 +100,11 @@ def calibrate_membrane(
         problem = load_problem(problem)
     if getattr(problem, "kind", None) != "membrane":
         raise InputError(f"problem: calibrate needs a membrane problem, got kind {getattr(problem, 'kind', None)!r}")
+    check_number("noise_std", noise_std, lo=1e-12, hi=0.5, allow_none=True)
+    check_number("release_peak", release_peak, allow_none=True)
+    check_number("max_memory", max_memory, positive=True, allow_none=True)
+    if data is None or isinstance(data, (bytes, bool)):
+        raise InputError(f"data = {data!r}: expected a CSV path, a Measurements or an array of rows t, s_1 .. s_p")
     if nodes is not None:
         problem = problem.with_mesh(nodes)
     if release_peak is not None and not (math.isfinite(release_peak) and 0 < abs(release_peak) < 0.5):
@@ -153,24 +146,32 @@ def calibrated_problem_text(run: CalibrationRun) -> str:
     return table_text(read_problem_table(run.problem.source), {"identification": ident}, header)
 
 
-def check_outputs(out_dir: str | Path, write_problem: str | Path | None = None) -> None:
-    """Refuse, before any work, outputs that cannot be written: the result directory, and the problem
-    file unless it goes into that directory (created by the run)."""
-    check_writable(out_dir)
-    if write_problem is not None and Path(write_problem).resolve().parent != Path(out_dir).resolve():
-        check_file_writable(write_problem, "--write-problem")
+def calibration_inputs(problem, data) -> list[tuple[str, str]]:
+    """The files a calibration reads, as ``(option, path)``: never overwritten, never inside ``--out``."""
+    src = problem if isinstance(problem, (str, Path)) else getattr(problem, "source", None)
+    out = [("problem", str(src))] if src else []
+    if isinstance(data, (str, Path)):
+        out.append(("--data", str(data)))
+    return out
 
 
-def write_calibration_outputs(run: CalibrationRun, out_dir: str | Path, write_problem: str | Path | None = None):
-    """Write ``summary.json`` (atomically) and, with ``write_problem``, the calibrated problem file
-    (an existing file is kept as ``NAME.bak``). Returns ``(out_dir, problem path or None, backup or None)``."""
+def write_calibration_outputs(
+    run: CalibrationRun, out_dir: str | Path, write_problem: str | Path | None = None, *, force: bool = False
+):
+    """Write ``summary.json`` (atomically) and, with ``write_problem``, the calibrated problem file (an
+    existing file, the input problem file included, is refused unless ``force``, and then kept as
+    ``NAME.bak``). Returns ``(out_dir, problem path or None, backup or None)``."""
+    if not isinstance(run, CalibrationRun):
+        raise InputError(f"run = {type(run).__name__}: expected the CalibrationRun of calibrate_membrane")
+    inputs = calibration_inputs(run.problem, run.source if run.source != "<memory>" else None)
     text = calibrated_problem_text(run) if write_problem is not None else None
-    check_outputs(out_dir, write_problem)
-    with ResultDirectory(out_dir) as tmp:
+    if write_problem is not None:
+        check_new_file(write_problem, "--write-problem", force=force, inputs=inputs)
+    with ResultDirectory(out_dir, inputs=[*inputs, ("--write-problem", write_problem)]) as tmp:
         write_json(tmp / "summary.json", to_jsonable(run.summary()))
         if text is not None:
             (tmp / "calibrated.toml").write_text(text)
     written = backup = None
     if text is not None:
-        written, backup = write_text_atomic(write_problem, text, what="--write-problem")
+        written, backup = write_text_atomic(write_problem, text, what="--write-problem", force=force, inputs=inputs)
     return Path(out_dir), written, backup

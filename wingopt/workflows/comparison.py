@@ -25,7 +25,7 @@ from wingopt.estimation.options import IdentifyOptions
 from wingopt.estimation.runners import mhe_settings
 from wingopt.problem import load_problem
 from wingopt.problem.membrane import MembraneProblem
-from wingopt.results import write_atomic, write_json_atomic
+from wingopt.results import OwnedDirectory, check_new_file, check_writable, write_text_atomic
 from wingopt.workflows.comparison_report import (
     checklist_markdown,
     consistency_markdown,
@@ -166,6 +166,17 @@ class ComparisonPreset:
     truth_mesh: tuple[int, int] = TRUTH_NODES
 
     def __post_init__(self) -> None:
+        from wingopt.resources import LIMITS, check_count
+
+        for name, given, words in (
+            ("loads", self.loads, ", ".join(LOADS)),
+            ("methods", self.methods, ", ".join(METHODS)),
+            ("noise", self.noises, "noise levels in percent, e.g. 1,5"),
+        ):
+            if self.table and not given:
+                raise InputError(f"{name} = {','.join(map(str, given))!r}: expected at least one ({words})")
+        if not self.table and not self.sign_seeds and not self.consistency:
+            raise InputError("table = no: nothing left to run; give --sign-seeds N or --consistency, or keep the table")
         for ld in self.loads:
             if ld not in LOADS:
                 raise InputError(f"loads: {ld!r}: expected {', '.join(LOADS[:-1])} or {LOADS[-1]}")
@@ -174,6 +185,15 @@ class ComparisonPreset:
                 raise InputError(f"methods: {m!r}: expected some of {', '.join(METHODS)}")
         if self.seeds < 1 or self.first_seed < 0 or self.sign_seeds < 0:
             raise InputError("seeds: expected a positive integer (first-seed, sign-seeds: non-negative)")
+        check_count("seeds", self.seeds)
+        check_count("sign-seeds", self.sign_seeds, "seeds")
+        tasks = len(self.loads) * len(self.noises) * self.seeds * len(self.methods) * (1 if self.table else 0)
+        tasks += len(self.loads) * self.sign_seeds
+        if tasks > LIMITS["tasks"]:
+            raise InputError(
+                f"seeds = {self.seeds}: {tasks} study tasks (loads x noise x seeds x methods), more than the limit of "
+                f"{LIMITS['tasks']}; split the study (--first-seed)"
+            )
 
     def runs(self) -> tuple[list[tuple], list[tuple]]:
         """The table's runs and the sign study's, as (load, noise, seed, method)."""
@@ -194,11 +214,6 @@ class ComparisonPreset:
         )
 
 
-def _write_text(path: str | Path, text: str) -> None:
-    """A study's text file, replaced atomically (its directory created; no backup: it is regenerated)."""
-    write_atomic(path, lambda tmp: tmp.write_text(text))
-
-
 def _keyed(rec: dict) -> dict:
     """A record of the compare before the study engine carries no key: derive it from its fields."""
     if "key" not in rec and "load" in rec:
@@ -215,6 +230,7 @@ def run_comparison(
     *,
     resume: bool = False,
     doc: str | Path | None = None,
+    force: bool = False,
     on_start: Callable[[Engine], None] | None = None,
     on_record: Callable[[dict], None] | None = None,
 ) -> tuple[dict, str]:
@@ -225,19 +241,36 @@ def run_comparison(
     (``resume``: keep those there and run only the others; otherwise the file is started afresh),
     each seen by ``on_record``; the consistency rows are kept in ``out/consistency.json``. Writes
     ``summary.json`` and ``comparison.md`` (and the document ``doc`` with its header) atomically.
-    Returns the report (the summary) and the markdown text; a
+    ``out`` follows the ownership rule (:mod:`wingopt.results.ownership`: it may hold only what
+    wingopt wrote there, unchanged, and not the problem file); ``doc`` onto an existing file is
+    refused unless ``force`` (the earlier file is then kept as ``NAME.bak``). Both are checked
+    before any work. Returns the report (the summary) and the markdown text; a
     :class:`~wingopt.errors.SolverError` if a task failed.
     """
+    from wingopt import resources
+
     prob = load_problem(problem)
     if prob.kind != "membrane":
         raise InputError(f"problem = {str(problem)!r}: compare needs a membrane problem")
-    out = Path(out)
+    inputs = [("problem", str(prob.source))]
+    check_writable(out, inputs=[*inputs, ("--doc", doc)])
+    if doc:
+        check_new_file(doc, "doc", force=force, inputs=inputs)
+    samples = int(round(1.0 / prob.identification.dt)) + 1
+    for method in preset.methods or ("mhe",):
+        knobs = {"truth": f"--truth-mesh {preset.truth_mesh[0]}x{preset.truth_mesh[1]}"}
+        resources.check(
+            resources.estimate_identify(prob.nodes, samples, truth_nodes=preset.truth_mesh, method=method, knobs=knobs)
+        )
+    owner = OwnedDirectory(out, inputs=[*inputs, ("--doc", doc)])
+    out = owner.path
     rec_path = out / "records.jsonl"
-    if resume and rec_path.exists():
+    if resume and rec_path.exists() and owner.owns("records.jsonl"):
         old = read_records(rec_path)
         if any("key" not in r for r in old):  # a pre-engine file: give its records their keys
-            _write_text(rec_path, "".join(json.dumps(_keyed(r)) + "\n" for r in old))
-    records = RecordLog(rec_path, fresh=not resume)
+            text = "".join(json.dumps(_keyed(r)) + "\n" for r in old)
+            owner.write("records.jsonl", lambda tmp: tmp.write_text(text), log=True)
+    records = RecordLog(rec_path, fresh=not resume, owner=owner)
     settings = mhe_settings(IdentifyOptions(load_space=preset.load_space, state_prior=preset.state_prior))
     truth = preset.truth_mesh
     t0 = time.perf_counter()
@@ -249,7 +282,7 @@ def run_comparison(
     sign_tasks, shared2 = protocol_tasks(prob, sign_runs, settings, truth, False)
     cons_tasks, shared3 = consistency_tasks(prob, settings=settings, truth_nodes=truth)
     cache = out / "consistency.json"
-    cons_rows = json.loads(cache.read_text()) if resume and cache.exists() else None
+    cons_rows = json.loads(cache.read_text()) if resume and cache.exists() and owner.owns(cache.name) else None
     if not preset.consistency or cons_rows is not None:
         cons_tasks = []
     table_keys = {t.key for t in table_tasks}
@@ -281,14 +314,14 @@ def run_comparison(
     if preset.consistency:
         if cons_rows is None:
             cons_rows = consistency_rows([by[t.key] for t in cons_tasks])
-            write_json_atomic(cache, cons_rows)
+            owner.write_json(cache.name, cons_rows)
         report["consistency"] = cons_rows
         sections.append(consistency_markdown(cons_rows))
     report["wall_s"] = time.perf_counter() - t0
     sections.insert(0, checklist_markdown(report))
     text = "\n\n".join(s for s in sections if s) + "\n"
-    write_json_atomic(out / "summary.json", report)
-    _write_text(out / "comparison.md", text)
+    owner.write_json("summary.json", report)
+    owner.write_text("comparison.md", text)
     if doc:
-        _write_text(doc, doc_header(str(problem), preset) + text)
+        write_text_atomic(doc, doc_header(str(problem), preset) + text, what="doc", force=force, inputs=inputs)
     return report, text

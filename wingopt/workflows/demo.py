@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from wingopt import __version__
+from wingopt.errors import InputError
 from wingopt.estimation.options import IdentifyOptions
 from wingopt.results import ResultDirectory, write_json
 from wingopt.results.report import Report
@@ -88,13 +89,18 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
     from wingopt.workflows.identify import identify, write_identify_outputs
     from wingopt.workflows.morph import morph, write_morph_outputs
 
+    if config is not None and not isinstance(config, DemoConfig):
+        raise InputError(f"config = {config!r}: expected a DemoConfig (e.g. DemoConfig.quick()) or None")
+    if progress is not None and not isinstance(progress, bool):
+        raise InputError(f"progress = {progress!r}: expected True, False or None")
     cfg = config or DemoConfig()
+    writer = ResultDirectory(out_dir)  # checked before any work
     t_start = time.perf_counter()
     plate = load_problem("plate")
     membrane = load_problem("membrane")
     summary: dict = {"version": __version__, "config": cfg.__dict__, "morph": {}, "identify": {}, "tables": {}}
     bar = _progress(len(SHAPES) * 3 + len(LOADS) * 3 + 2 + len(REAL_MODELS) * cfg.real_membrane, progress)
-    with ResultDirectory(out_dir) as tmp:
+    with writer as tmp:
         # -- 1. morphing ----------------------------------------------------------------------
         for shape in SHAPES:
             bar.set_description(f"morph {shape}: QP")

@@ -21,7 +21,7 @@ from wingopt.problem import load_problem, read_problem_table
 from wingopt.problem.toml_text import problem_text, sensors_text
 from wingopt.results import (
     ResultDirectory,
-    check_file_writable,
+    check_new_file,
     check_writable,
     write_json,
     write_text_atomic,
@@ -58,9 +58,14 @@ def design_layout(problem, count: int, candidates=None, settings: DesignSettings
     the nominal loads (``risk`` only; :mod:`wingopt.design.rerank`), at the settings' noise and
     record length.
     """
+    from wingopt.resources import check_count
+
     s = settings or DesignSettings()
+    if isinstance(montecarlo, bool) or not isinstance(montecarlo, int):
+        raise InputError(f"montecarlo = {montecarlo!r}: expected a whole number (a short-list size)")
     if montecarlo < 0 or (montecarlo and s.criterion != "risk"):
         raise InputError(f"montecarlo = {montecarlo}: expected a positive short-list size, with --criterion risk")
+    check_count("montecarlo", montecarlo)
     prob = load_problem(problem) if isinstance(problem, (str, Path)) else problem
     if prob.kind != "membrane":
         raise InputError(f"problem = {str(problem)!r}: design-sensors needs a membrane problem, got {prob.kind!r}")
@@ -87,17 +92,24 @@ def write_design_outputs(
     plots: bool = True,
     write_problem: str | Path | None = None,
     source=None,
+    force: bool = False,
 ) -> DesignRun:
     """Write ``summary.json``, ``sensors.toml`` and ``layout.png`` into ``out`` (atomically).
 
     ``write_problem``: also write the problem file ``source`` (a path or built-in name; default the
     design's problem name) with its ``[[sensors]]`` replaced by the design, atomically; an existing
-    file there is first kept as ``NAME.bak``.
+    file there (the input problem file included) is refused unless ``force``, and then first kept
+    as ``NAME.bak`` (:mod:`wingopt.results.ownership`).
     """
+    if not isinstance(result, DesignResult):
+        raise InputError(f"result = {type(result).__name__}: expected the DesignResult of design_sensors")
     header = sensors_header(result)
     toml = sensors_text(result.rects, header=header)
     summary = result.summary()
-    with ResultDirectory(out) as tmp:
+    inputs = _inputs(source if source is not None else result.problem)
+    if write_problem is not None:
+        check_new_file(write_problem, "write-problem", force=force, inputs=inputs)
+    with ResultDirectory(out, inputs=[*inputs, ("--write-problem", write_problem)]) as tmp:
         write_json(tmp / "summary.json", summary)
         (tmp / "sensors.toml").write_text(toml)
         if plots:
@@ -107,7 +119,9 @@ def write_design_outputs(
     if write_problem is not None:
         table = read_problem_table(source if source is not None else result.problem.name)
         text = problem_text(table, result.rects, header=header)
-        run.problem_file, run.backup = write_text_atomic(write_problem, text, what="write-problem")
+        run.problem_file, run.backup = write_text_atomic(
+            write_problem, text, what="write-problem", force=force, inputs=inputs
+        )
         if run.backup is not None:
             log.info("kept the earlier %s as %s", run.problem_file.name, run.backup.name)
     return run
@@ -122,17 +136,28 @@ def run_design(
     montecarlo: int = 0,
     plots: bool = True,
     write_problem: str | Path | None = None,
+    force: bool = False,
     **options,
 ) -> DesignRun:
     """:func:`design_layout` then :func:`write_design_outputs`, both outputs checked first.
 
     ``problem`` is a problem file or built-in name (the source of ``write_problem``) or a loaded
-    problem; ``options`` are those of :func:`design_settings`.
+    problem; ``options`` are those of :func:`design_settings`; ``force`` lets ``write_problem``
+    replace an existing file (kept as ``NAME.bak``).
     """
-    check_writable(out)
+    inputs = _inputs(problem)
+    check_writable(out, inputs=[*inputs, ("--write-problem", write_problem)])
     settings = design_settings(**options)
     if write_problem is not None:
-        check_file_writable(write_problem, "write-problem")
+        check_new_file(write_problem, "write-problem", force=force, inputs=inputs)
     result = design_layout(problem, count, candidates, settings, montecarlo)
     source = problem if isinstance(problem, (str, Path)) else None
-    return write_design_outputs(result, out, plots=plots, write_problem=write_problem, source=source)
+    return write_design_outputs(result, out, plots=plots, write_problem=write_problem, source=source, force=force)
+
+
+def _inputs(problem) -> list[tuple[str, str]]:
+    """The input problem file (a path, or a loaded problem's source) as ``(option, path)``."""
+    if isinstance(problem, (str, Path)):
+        return [("problem", str(problem))]
+    src = getattr(problem, "source", None)
+    return [("problem", str(src))] if src else []

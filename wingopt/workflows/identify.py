@@ -35,11 +35,12 @@ from wingopt.estimation.result import IdentificationResult
 from wingopt.estimation.runners import build
 from wingopt.measurements import Measurements, read_measurements
 from wingopt.membrane import MembraneModel, TruthRecord
+from wingopt.membrane.loads import LOAD_CASES
 from wingopt.problem import load_problem
 from wingopt.results import ResultDirectory, write_csv, write_json
-from wingopt.validate import check_seed
+from wingopt.validate import check_nodes, check_number, check_seed
 from wingopt.values import LambdaChoice, NoiseLevel
-from wingopt.workflows.protocols import TRUTH_NODES, TRUTHS, simulate_case
+from wingopt.workflows.protocols import TRUTH_NODES, check_truth_settings, simulate_case
 from wingopt.workflows.studies import evaluate, load_field, protocol_sign
 
 log = logging.getLogger(__name__)
@@ -218,10 +219,22 @@ def identify(
     if not problem.sensors:
         raise InputError(f"problem {problem.name!r}: no [[sensors]]: identification needs stretch sensors")
     check_seed(seed)
-    if truth not in TRUTHS:
-        raise InputError(f"truth = {truth!r}: expected one of {', '.join(TRUTHS)}")
     if (load is None) == (data is None):
         raise InputError("identify: give exactly one of load= (simulated protocol) or data= (measured CSV)")
+    if load is not None and (not isinstance(load, str) or load not in LOAD_CASES):
+        raise InputError(f"load = {load!r}: expected one of {', '.join(LOAD_CASES)}")
+    if not isinstance(method, str) or not isinstance(model, str):
+        raise InputError(f"method = {method!r}, model = {model!r}: expected names (see wingopt.estimation.registry)")
+    check_truth_settings(truth, truth_prestrain, truth_damping)
+    check_number("t_end", t_end, positive=True)
+    check_number("noise_percent", noise_percent, lo=0.0, hi=100.0)
+    check_number("max_memory", max_memory, positive=True, allow_none=True)
+    if truth_nodes is not None:
+        truth_nodes = check_nodes(truth_nodes, "truth_nodes")
+    if gust is not None and not callable(getattr(gust, "factor", None)):
+        raise InputError(f"gust = {gust!r}: expected a wingopt.membrane.Gust or None")
+    if settings is not None and type(settings).__name__ not in ("MHESettings", "RealisticSettings"):
+        raise InputError(f"settings = {settings!r}: expected an MHESettings or a RealisticSettings (or None)")
     opts = _options(options, initial_load=initial_load, noise_std=noise_std, lam=lam)
     spec = resolve(method, model, simulated=truth if load is not None else None)
     check_options(spec, opts)
@@ -232,8 +245,6 @@ def identify(
     samples, truth_mesh = 1, None
     if load is not None:
         fraction = NoiseLevel.from_percent(noise_percent).fraction
-        if not (np.isfinite(t_end) and t_end > 0):
-            raise InputError(f"t_end = {t_end!r}: expected a positive duration (s)")
         sanity.check_duration(t_end, problem.identification.dt)
         samples, truth_mesh = int(round(t_end / problem.identification.dt)) + 1, truth_nodes or problem.nodes
     resources.check(
@@ -314,12 +325,17 @@ def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = 
     """
     from wingopt.results.writer import to_jsonable
 
+    if not isinstance(run, IdentifyRun):
+        raise InputError(f"run = {type(run).__name__}: expected the IdentifyRun that wingopt.identify returned")
+    if not isinstance(plots, bool):
+        raise InputError(f"plots = {plots!r}: expected True or False")
     problem, result = run.problem, run.result
     xs = np.linspace(0, problem.width, LOAD_GRID[0])
     ys = np.linspace(0, problem.height, LOAD_GRID[1])
     X, Y = np.meshgrid(xs, ys)
     Pg = run.load_field()(X, Y)
-    with ResultDirectory(out_dir) as tmp:
+    inputs = [("--data", (run.data_report or {}).get("file")), ("problem", getattr(problem, "source", None))]
+    with ResultDirectory(out_dir, inputs=inputs) as tmp:
         write_json(tmp / "summary.json", to_jsonable(run.summary()))
         write_csv(tmp / "load.csv", ["x", "y", "pressure_Pa"], zip(X.ravel(), Y.ravel(), Pg.ravel()))
         if result.lift_std is not None:

@@ -31,7 +31,7 @@ from wingopt.plate.shapes import SHAPES
 from wingopt.plots.morph import plot_morph
 from wingopt.problem import load_problem
 from wingopt.results import ResultDirectory, check_writable, write_csv, write_json
-from wingopt.validate import check_seed
+from wingopt.validate import check_nodes, check_number, check_seed
 from wingopt.values import VoltageLimits
 
 __all__ = [
@@ -204,20 +204,22 @@ def morph(
     t0 = time.perf_counter()
     if getattr(problem, "kind", None) != "plate":
         raise InputError(f"problem: morph needs a plate problem, got kind {getattr(problem, 'kind', None)!r}")
-    if shape not in SHAPES:
+    if not isinstance(shape, str) or shape not in SHAPES:
         raise InputError(f"shape = {shape!r}: expected one of {', '.join(SHAPES)}")
-    if not (np.isfinite(t_end) and t_end > 0):
-        raise InputError(f"t_end = {t_end!r}: expected a positive duration (s)")
+    check_morph_numbers(t_end=t_end, period=period, sensor_noise=sensor_noise, vmin=vmin, vmax=vmax)
     check_seed(seed)
     if not problem.patches:
         raise InputError(f"problem {problem.name!r}: no [[patches]]: morphing needs piezo patch pairs as actuators")
+    if not isinstance(method, str):
+        raise InputError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
     factory = load_factory(method)
+    if nodes is not None:
+        nodes = check_nodes(nodes)
+    horizon = _horizon(options)
+    mesh = nodes or (model.problem.nodes if model is not None else problem.nodes)
+    resources.check(resources.estimate_morph(mesh, t_end, period, horizon=horizon), max_memory)
     if model is None:
-        est = resources.estimate_morph(nodes or problem.nodes, t_end, period)
-        resources.check(est, max_memory)
         model = PlateModel.from_problem(problem, nodes)
-    else:
-        resources.check(resources.estimate_morph(model.problem.nodes, t_end, period), max_memory)
     limits = resolve_limits(problem, method, vmin, vmax, model.n_inputs)
     lo, hi = limits.scalar("lower"), limits.scalar("upper")
     target = model.target(shape)
@@ -229,6 +231,26 @@ def morph(
     wall = time.perf_counter() - t0
     log.info("morph %s/%s: shape error %.4f in %.2f s", shape, method, cl.final_shape_error, wall)
     return MorphResult(method, shape, model, target, cl, wall, lo, hi, float(t_end), dict(options), extras)
+
+
+def check_morph_numbers(*, t_end, period, sensor_noise, vmin=None, vmax=None) -> None:
+    """The numbers of a morph run: finite, positive where they must be, the period within ``t_end``."""
+    check_number("t_end", t_end, positive=True)
+    check_number("period", period, positive=True)
+    check_number("sensor_noise", sensor_noise, lo=0.0, hi=1.0)  # m: a metre of noise is no sensor
+    check_number("vmin", vmin, allow_none=True, lo=-1e6, hi=1e6)
+    check_number("vmax", vmax, allow_none=True, lo=-1e6, hi=1e6)
+    if period > t_end:
+        raise InputError(f"period = {period!r}: expected a control period no longer than t_end = {t_end!r}")
+
+
+def _horizon(options: dict) -> int | None:
+    h = options.get("horizon")
+    if h is None:
+        return None
+    if isinstance(h, bool) or not isinstance(h, (int, np.integer)) or h < 1:
+        raise InputError(f"horizon = {h!r}: expected a positive whole number of steps")
+    return int(h)
 
 
 def write_morph_outputs(
@@ -260,6 +282,10 @@ def write_morph_outputs(
     dict
         The summary written to ``summary.json``.
     """
+    if not isinstance(result, MorphResult):
+        raise InputError(f"result = {type(result).__name__}: expected the MorphResult of wingopt.morph")
+    if compare_with is not None and not isinstance(compare_with, MorphResult):
+        raise InputError(f"compare_with = {type(compare_with).__name__}: expected a MorphResult or None")
     summary = result.summary()
     if compare_with is not None:
         summary["compare_with"] = compare_with.summary()
@@ -267,7 +293,7 @@ def write_morph_outputs(
         summary.update(extra_summary)
     cl = result.closed_loop
     try:
-        with ResultDirectory(out_dir) as tmp:
+        with ResultDirectory(out_dir, inputs=[("problem", getattr(result.model.problem, "source", None))]) as tmp:
             write_json(tmp / "summary.json", summary)
             header = ["t"] + list(result.model.patch_names)
             write_csv(tmp / "voltages.csv", header, np.column_stack([cl.t_u, cl.u]))
@@ -304,13 +330,18 @@ def morph_to_directory(
     ``max_memory`` before the model is built. ``kwargs`` go to :func:`morph` (limits, ``t_end``,
     noise, period, plant, and the method's options). Returns the summary written.
     """
-    check_writable(out)
+    check_writable(out, inputs=[("problem", str(problem))])
     prob = load_problem(problem)
     if prob.kind != "plate":
         raise InputError(f"problem = {str(problem)!r}: morph needs a plate problem, got kind {prob.kind!r}")
     load_factory(method)  # an unknown method fails before anything is built
     t_end, period = kwargs.get("t_end", 2.0), kwargs.get("period", DEFAULT_PERIOD)
-    resources.check(resources.estimate_morph(nodes or prob.nodes, t_end, period), max_memory)
+    check_morph_numbers(
+        t_end=t_end, period=period, sensor_noise=kwargs.get("sensor_noise", 0.0), vmin=kwargs.get("vmin"),
+        vmax=kwargs.get("vmax"),
+    )  # fmt: skip
+    horizon = _horizon(kwargs)
+    resources.check(resources.estimate_morph(nodes or prob.nodes, t_end, period, horizon=horizon), max_memory)
     model = PlateModel.from_problem(prob, nodes)
     result = morph(prob, shape, method, model=model, max_memory=max_memory, **kwargs)
     baseline = None

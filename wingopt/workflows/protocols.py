@@ -9,6 +9,9 @@ constant load for 1 s at 1 ms, Gaussian noise of ``p * max_t |s_i|`` per sensor.
 
 from __future__ import annotations
 
+import math
+
+from wingopt.errors import InputError
 from wingopt.membrane import (
     Gust,
     MembraneParameters,
@@ -19,14 +22,39 @@ from wingopt.membrane import (
     simulate_truth,
 )
 from wingopt.problem.membrane import MembraneProblem
+from wingopt.validate import check_nodes, check_number
 
-__all__ = ["TRUTH_NODES", "TRUTHS", "simulate_case"]
+__all__ = ["TRUTH_NODES", "TRUTHS", "simulate_case", "check_truth_settings"]
 
 TRUTH_NODES = (49, 25)
 """Default mesh of the simulated truth (the estimator's default is the problem's 25x13)."""
 
 TRUTHS = ("linear", "berger", "fvk")
 """Simulated truth physics: the seed's linear membrane, Berger, Föppl–von Kármán (full order)."""
+
+
+def check_truth_settings(truth: str, prestrain, damping) -> None:
+    """The simulated truth's physics, prestrains ``(ex, ey)`` (1e-9..0.5, as a problem file's) and
+    damping factor (above 0, at most 1000): an :class:`~wingopt.errors.InputError` naming the option."""
+    if truth not in TRUTHS:
+        raise InputError(f"truth = {truth!r}: expected one of {', '.join(TRUTHS)}")
+    if prestrain is not None:
+        try:
+            pair = [float(v) for v in prestrain]
+        except (TypeError, ValueError):
+            pair = []
+        if len(pair) != 2 or not all(math.isfinite(v) and 1e-9 <= v <= 0.5 for v in pair):
+            raise InputError(
+                f"truth-prestrain = {prestrain!r}: expected two prestrains (ex, ey) from 1e-9 to 0.5 (e.g. 0.06 0.04)"
+            )
+    if (
+        isinstance(damping, bool)
+        or not isinstance(damping, (int, float))
+        or not (math.isfinite(damping) and 0 < damping <= 1000)
+    ):
+        raise InputError(
+            f"truth-damping = {damping!r}: expected a damping factor above 0 and at most 1000 (1: the file's)"
+        )
 
 
 def simulate_case(
@@ -70,6 +98,11 @@ def simulate_case(
     TruthRecord
         The noisy measurements, the truth trajectory and load, and the error metrics against them.
     """
+    check_truth_settings(truth, prestrain, damping)
+    if truth_nodes is not None:
+        truth_nodes = check_nodes(truth_nodes, "truth_nodes")
+    check_number("t_end", t_end, positive=True)
+    check_number("noise", noise, lo=0.0, hi=1.0)
     params = MembraneParameters.nominal(problem, prestrain, damping)
     fwd = forward_model(problem, truth, nodes=truth_nodes or problem.nodes, params=params, substeps=substeps)
     protocol = RecordProtocol(

@@ -15,15 +15,14 @@ from __future__ import annotations
 
 import logging
 import os
-import select
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from wingopt.errors import DataFileError, InputError
+from wingopt.errors import InputError
+from wingopt.measurements.lines import LineSource
 
 __all__ = ["COLUMNS", "LatencyStats", "follow"]
 
@@ -56,61 +55,6 @@ class LatencyStats:
         if period:
             out.update({k.replace("_s", "_of_period"): v / period for k, v in list(out.items())[1:]})
         return out
-
-
-class _Lines:
-    """Complete lines of a growing file or of standard input; stops on EOF (stdin), idle or a signal."""
-
-    def __init__(self, path: str | None, poll: float, idle: float | None, stop: dict) -> None:
-        self.path, self.poll, self.idle, self.stop = path, poll, idle, stop
-        self.reason = None
-
-    def __iter__(self):
-        buf = b""
-        last = time.monotonic()
-        fh = None
-        fd = None if self.path else sys.stdin.fileno()
-        try:
-            while True:
-                if self.stop.get("signal"):
-                    self.reason = self.stop["signal"]
-                    return
-                chunk = b""
-                if fd is None:
-                    if fh is None and os.path.exists(self.path):
-                        fh = open(self.path, "rb")
-                    chunk = fh.read(65536) if fh is not None else b""
-                else:
-                    ready, _, _ = select.select([fd], [], [], self.poll)
-                    if ready:
-                        chunk = os.read(fd, 65536)
-                        if not chunk:
-                            if buf:
-                                yield self._decode(buf)
-                            self.reason = "end of input"
-                            return
-                if chunk:
-                    buf += chunk
-                    *lines, buf = buf.split(b"\n")
-                    if lines:
-                        last = time.monotonic()
-                    for raw in lines:
-                        yield self._decode(raw)
-                    continue
-                if self.idle is not None and time.monotonic() - last > self.idle:
-                    self.reason = f"idle for {self.idle:g} s"
-                    return
-                if fd is None:
-                    time.sleep(self.poll)
-        finally:
-            if fh is not None:
-                fh.close()
-
-    def _decode(self, raw: bytes) -> str:
-        try:
-            return raw.decode("utf-8").rstrip("\r")
-        except UnicodeDecodeError:
-            raise DataFileError(f"{self.path or '<stdin>'}: not a text (UTF-8) CSV stream") from None
 
 
 def follow(
@@ -153,17 +97,40 @@ def follow(
     dict
         ``samples``, ``lift_N``, ``lift_std_N``, ``stopped``, ``latency``, ``warnings``, ...
     """
+    from wingopt.estimation import sanity
     from wingopt.estimation.options import IdentifyOptions
     from wingopt.estimation.registry import resolve
     from wingopt.estimation.runners import build
     from wingopt.measurements.csv_stream import CsvRowParser
     from wingopt.membrane import MembraneModel
+    from wingopt.problem import as_problem
     from wingopt.results import ResultDirectory, to_jsonable, write_json
     from wingopt.results.live import LiveCsv
 
+    problem = as_problem(problem, "membrane")
+    check_stream_settings(poll, idle_timeout)
+    if source is not None:
+        source = os.fspath(source) if isinstance(source, os.PathLike) else source
+        if not isinstance(source, str) or not source:
+            raise InputError(f"source = {source!r}: expected the path of a CSV file, or None for standard input")
+        if os.path.isdir(source):
+            raise InputError(f"follow = {source!r}: is a directory, expected a CSV file")
+        if os.path.exists(source) and not os.path.isfile(source):
+            raise InputError(f"follow = {source!r}: not a regular file (a device or a pipe cannot be followed)")
+    if stop is not None and not isinstance(stop, dict):
+        raise InputError(f"stop = {type(stop).__name__}: expected a dict (stop['signal'] ends the stream)")
+    if on_estimate is not None and not callable(on_estimate):
+        raise InputError(f"on_estimate = {on_estimate!r}: expected a callable on_estimate(k, row)")
     spec = resolve(stream=True) if spec is None else spec
+    if not getattr(spec, "stream", False):
+        raise InputError(f"spec = {spec!r}: expected a streaming estimator, resolve(..., stream=True)")
     options = IdentifyOptions() if options is None else options
+    if not isinstance(options, IdentifyOptions):
+        raise InputError(f"options = {type(options).__name__}: expected wingopt.estimation.options.IdentifyOptions")
     stop = {} if stop is None else stop
+    inputs = [("--follow", source)] + [("problem", getattr(problem, "source", None))]
+    writer = ResultDirectory(out, inputs=inputs)  # checked before any work
+    check_stream_size(problem)
     est = build(spec, MembraneModel.from_problem(problem), options, keep=False)
     method = f"{spec.method}-stream"
     name = source or "<stdin>"
@@ -171,13 +138,20 @@ def follow(
     cpu, wall = LatencyStats(), LatencyStats()
     bad, first_bad = 0, None
     t_start = time.perf_counter()
-    lines = _Lines(source, poll, idle_timeout, stop)
+    lines = LineSource(source, poll, idle_timeout, stop)
     failure = None
-    with ResultDirectory(out) as tmp, LiveCsv(tmp / "lift.csv", COLUMNS) as live:
+    peak: list = [0.0, ""]  # largest stretch reading so far, and its sensor (the units check)
+    with writer as tmp, LiveCsv(tmp / "lift.csv", COLUMNS) as live:
         log.info("streaming estimates appended to %s", tmp / "lift.csv")
         try:
             for line in lines:
+                if lines.take_restart():
+                    parser.new_file()
                 for t, y in parser.feed(line):
+                    ay = np.abs(np.asarray(y, dtype=float))
+                    if np.isfinite(ay).any() and np.nanmax(ay) > peak[0]:
+                        j = int(np.nanargmax(ay))
+                        peak[:] = [float(ay[j]), problem.sensor_names[j]]
                     c0, w0 = time.thread_time(), time.perf_counter()
                     e = est.push(t, y)
                     cpu.add(time.thread_time() - c0)
@@ -195,20 +169,81 @@ def follow(
                 if stop.get("signal"):
                     lines.reason = stop["signal"]
                     break
-        except InputError as exc:
-            # A bad row ends the stream, but the estimates so far are kept (hours of them, maybe):
-            # the record is written, then the error is reported.
+        except BaseException as exc:  # noqa: BLE001 - whatever stops the stream, the record so far is kept
+            # A bad row, a numerical failure, an interrupt: the estimates so far (hours of them,
+            # maybe) are written with the summary, then the error is raised.
             failure = exc
-            lines.reason = f"bad input: {exc}"
-        summary = _summary(est, parser, lines.reason, cpu, wall, bad, first_bad, name, problem, live.rows)
+            lines.reason = _stopped_by(exc)
+        live.close()
+        try:
+            summary = _summary(est, parser, lines.reason, cpu, wall, bad, first_bad, name, problem, live.rows)
+        except Exception as exc:  # noqa: BLE001 - the estimator's state after a failure may not summarise
+            summary = {"problem": problem.name, "source": name, "stopped": lines.reason, "samples": live.rows,
+                       "rows_written": live.rows, "lift_N": None, "lift_std_N": None,
+                       "summary_error": f"{type(exc).__name__}: {exc}", "warnings": []}  # fmt: skip
+        if lines.restarts:
+            summary["restarts"] = list(lines.restarts)
+        scale = sanity.scale_warnings(peak[0], peak[1], problem.material.prestrain)
+        summary["warnings"] = list(summary.get("warnings", [])) + scale
         summary["method"] = method
         summary["membrane"] = spec.model
         summary["options"] = options.as_dict()
         summary["wall_s"] = time.perf_counter() - t_start
         write_json(tmp / "summary.json", to_jsonable(summary))
+        writer.commit()
     if failure is not None:
-        raise failure
+        raise _as_stream_error(failure, method, live.rows, writer.target)
     return summary
+
+
+def check_stream_settings(poll: float, idle_timeout: float | None) -> None:
+    """``poll`` a positive finite number of seconds, ``idle_timeout`` positive (``inf``: none) or ``None``."""
+    try:
+        poll_ok = 0 < float(poll) <= 3600
+    except (TypeError, ValueError):
+        poll_ok = False
+    if isinstance(poll, bool) or not poll_ok:
+        raise InputError(f"poll = {poll!r}: expected a positive number of seconds, at most 3600 (e.g. 0.05)")
+    if idle_timeout is not None:
+        try:
+            idle_ok = float(idle_timeout) > 0
+        except (TypeError, ValueError):
+            idle_ok = False
+        if isinstance(idle_timeout, bool) or not idle_ok:
+            raise InputError(f"idle-timeout = {idle_timeout!r}: expected a positive number of seconds")
+
+
+def check_stream_size(problem) -> None:
+    """Refuse, before any work, a stream whose estimator cannot fit (mesh, sensors)."""
+    from wingopt import resources
+
+    resources.check(resources.estimate_stream(problem.nodes, len(problem.sensor_names)))
+
+
+def _stopped_by(exc: BaseException) -> str:
+    if isinstance(exc, InputError):
+        return f"bad input: {exc}"
+    if isinstance(exc, KeyboardInterrupt):
+        return "SIGINT"
+    signum = getattr(exc, "signum", None)
+    if signum is not None:
+        import signal
+
+        return signal.Signals(signum).name
+    return f"error: {type(exc).__name__}: {exc}"
+
+
+def _as_stream_error(exc: BaseException, method: str, rows: int, out) -> BaseException:
+    """What :func:`follow` raises after it wrote the record so far: a bad row's ``InputError`` and an
+    interrupt as they are; any other failure as a one-line :class:`~wingopt.errors.SolverError`."""
+    from wingopt.errors import SolverError, WingoptError
+
+    if isinstance(exc, (WingoptError, KeyboardInterrupt, SystemExit)) or not isinstance(exc, Exception):
+        return exc
+    what = "out of memory" if isinstance(exc, MemoryError) else f"{type(exc).__name__}: {exc}"
+    return SolverError(
+        method, " ".join(what.split()), f"the stream stopped; its {rows} estimates so far are in {str(out)!r}"
+    )
 
 
 def _summary(est, parser, reason, cpu, wall, bad, first_bad, source, problem, rows_written) -> dict:

@@ -76,6 +76,10 @@ class MovingHorizonEstimator(StartUp, WindowInformation):
     """
 
     def __init__(self, model: MembraneModel, settings: MHESettings | None = None) -> None:
+        if not isinstance(model, MembraneModel):
+            raise InputError(f"model = {type(model).__name__}: expected a MembraneModel (MembraneModel.from_problem)")
+        if settings is not None and not isinstance(settings, MHESettings):
+            raise InputError(f"settings = {settings!r}: expected an MHESettings or None")
         self.model = model
         self.settings = settings or MHESettings()
         s = self.settings
@@ -116,6 +120,8 @@ class MovingHorizonEstimator(StartUp, WindowInformation):
             Peak (m) of the prior initial bubble; ``0``: unknown. Default: the problem's
             ``identification.initial_deflection`` when it has one, else 0.
         """
+        if not isinstance(measurements, Measurements):
+            raise InputError(f"measurements = {type(measurements).__name__}: expected a Measurements")
         t0 = time.perf_counter()
         s, red = self.settings, self.reduced
         problem = self.model.problem

@@ -119,6 +119,20 @@ def _execute(fn: Callable[..., dict], key: str, args: tuple, *shared) -> dict:
     return record
 
 
+MAX_WORKER_DEATHS = 5
+"""Times a task is run again because its worker died under it (not counted against its retries)."""
+
+
+def _worker_lost(exc) -> bool:
+    """``exc`` says the task's worker died or the scheduler lost the task, not that the task raised."""
+    if exc is None:
+        return True
+    name = type(exc).__name__
+    return name in ("KilledWorker", "CancelledError", "FutureCancelledError", "CommClosedError") or isinstance(
+        exc, (ConnectionError, EOFError)
+    )
+
+
 def _failure(task: SweepTask, exc: BaseException) -> dict:
     return {"key": task.key, "status": "failed", "error": f"{type(exc).__name__}: {exc}"}
 
@@ -296,6 +310,7 @@ class Engine:
             fut = self._submit(task, futures, _dask_key("task", task.key, run), priority=len(tasks) - rank)
             by_future[fut.key] = (fut, task)
         attempts: dict[str, int] = {}
+        deaths: dict[str, int] = {}
         try:
             while by_future:
                 try:
@@ -307,14 +322,27 @@ class Engine:
                     _, task = by_future.pop(fut.key)
                     if fut.status == "finished":
                         yield fut.result()
-                    else:
-                        try:
-                            exc = fut.exception()
-                        except Exception as err:  # cancelled (e.g. the scheduler restarted)
-                            exc = err
-                        log.warning("task %s failed after %d retries: %s", task.key, retries, exc)
-                        yield _failure(task, exc)
+                        fut.release()
+                        continue
+                    try:
+                        exc = fut.exception()
+                    except Exception as err:  # cancelled (e.g. the scheduler restarted)
+                        exc = err
                     fut.release()
+                    if _worker_lost(exc):
+                        # The worker died under it (or the scheduler lost it): not the task's failure,
+                        # so it costs none of its retries; it runs again on a live worker, within
+                        # a budget of its own (a task that kills every worker it runs on ends).
+                        deaths[task.key] = n = deaths.get(task.key, 0) + 1
+                        if n <= MAX_WORKER_DEATHS:
+                            log.warning("task %s: its worker died (%s); running it again (%d)", task.key, exc, n)
+                            again = f"{_dask_key('task', task.key, run)}-lost{n}"
+                            new = self._submit(task, futures, again, priority=len(tasks) + 1)
+                            by_future[new.key] = (new, task)
+                            continue
+                        exc = RuntimeError(f"its worker died {n} times while running it ({exc})")
+                    log.warning("task %s failed after %d retries: %s", task.key, retries, exc)
+                    yield _failure(task, exc)
         finally:
             # Interrupted (or done): nothing left running for this study.
             client.cancel([f for f, _ in by_future.values()] + list(futures.values()))

@@ -21,6 +21,7 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.results import to_jsonable, write_atomic, write_csv
+from wingopt.results.owned import append_synced, truncate_synced
 
 __all__ = [
     "RecordLog",
@@ -42,7 +43,10 @@ def read_records(path: str | os.PathLike) -> list[dict]:
     path = Path(path)
     if not path.exists():
         return []
-    text = path.read_text()
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a text (UTF-8) file of JSON records") from None
     torn = bool(text) and not text.endswith("\n")  # the last write was cut short
     lines = text.splitlines()
     records = []
@@ -82,10 +86,20 @@ def by_key(records: Iterable[dict]) -> dict[str, dict]:
 
 
 class RecordLog:
-    """Append-only records file. Opening it for appends cuts off a torn last line first."""
+    """Append-only records file. Opening it for appends cuts off a torn last line first.
 
-    def __init__(self, path: str | os.PathLike, fresh: bool = False) -> None:
+    With ``owner`` (an :class:`~wingopt.results.writer.OwnedDirectory`: what the commands use) the
+    file is the directory's append-only log: listed in its manifest, only ever appended to, and a
+    torn line is cut only from the part this package appended (a user's file of the same name is
+    refused, never cut). Without it (tests, the API on a file of one's own), as before.
+    """
+
+    def __init__(self, path: str | os.PathLike, fresh: bool = False, owner=None) -> None:
         self.path = Path(path)
+        self._log = None
+        if owner is not None:
+            self._log = owner.open_log(self.path.name, fresh)
+            return
         self.path.parent.mkdir(parents=True, exist_ok=True)
         if fresh or not self.path.exists():
             write_atomic(self.path, lambda p: p.write_text(""))
@@ -97,20 +111,15 @@ class RecordLog:
         if data and not data.endswith(b"\n"):
             keep = data.rfind(b"\n") + 1
             log.warning("%s: cutting a torn last line (%d bytes) before appending", self.path, len(data) - keep)
-            with open(self.path, "r+b") as fh:
-                fh.truncate(keep)
-                fh.flush()
-                os.fsync(fh.fileno())
+            truncate_synced(self.path, keep)
 
     def append(self, record: dict) -> None:
         """Append one record: one write of the whole line, flushed and synced before returning."""
         line = (json.dumps(to_jsonable(record), allow_nan=False) + "\n").encode()
-        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-        try:
-            os.write(fd, line)
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+        if self._log is not None:
+            self._log.append(line)
+        else:
+            append_synced(self.path, line)
 
     def read(self) -> list[dict]:
         return read_records(self.path)
@@ -140,21 +149,26 @@ def summary_rows(records: Iterable[dict], case_fields: Sequence[str], metrics: S
     return rows
 
 
-def write_table(path_stem: str | os.PathLike, rows: Sequence[dict]) -> list[Path]:
-    """``STEM.csv`` (always) and ``STEM.parquet`` (when pyarrow is installed); returns the paths."""
+def write_table(path_stem: str | os.PathLike, rows: Sequence[dict], owner=None) -> list[Path]:
+    """``STEM.csv`` (always) and ``STEM.parquet`` (when pyarrow is installed); returns the paths.
+
+    ``owner``: the :class:`~wingopt.results.writer.OwnedDirectory` the table goes into (listed there).
+    """
     stem = Path(path_stem)
     header = list(dict.fromkeys(k for r in rows for k in r))
     cells = [[_cell(r.get(k)) for k in header] for r in rows]
-    paths = [stem.with_suffix(".csv")]
-    write_atomic(paths[0], lambda p: write_csv(p, header, cells))
+
+    def put(path: Path, fill) -> Path:
+        return owner.write(path.name, fill) if owner is not None else write_atomic(path, fill)
+
+    paths = [put(stem.with_suffix(".csv"), lambda p: write_csv(p, header, cells))]
     try:
         import pyarrow as pa
         import pyarrow.parquet as pq
     except ImportError:
         return paths
     table = pa.Table.from_pylist([{k: _cell(r.get(k)) for k in header} for r in rows])
-    paths.append(stem.with_suffix(".parquet"))
-    write_atomic(paths[1], lambda p: pq.write_table(table, p))
+    paths.append(put(stem.with_suffix(".parquet"), lambda p: pq.write_table(table, p)))
     return paths
 
 

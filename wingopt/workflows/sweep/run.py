@@ -16,7 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from wingopt.errors import OutputError
-from wingopt.results import write_json_atomic
+from wingopt.results import OwnedDirectory
 from wingopt.workflows.studies import protocol_sign
 from wingopt.workflows.sweep.engine import Engine, SharedInput, SweepTask
 from wingopt.workflows.sweep.protocol import (
@@ -100,19 +100,24 @@ def run_sweep(
     resume: bool = False,
     on_record: Callable[[dict], None] | None = None,
 ) -> dict:
-    """Run ``spec`` on ``engine`` into ``out`` (see the module docstring); returns the summary."""
-    out = Path(out)
-    path = out / "records.jsonl"
+    """Run ``spec`` on ``engine`` into ``out`` (see the module docstring); returns the summary.
+
+    ``out`` is an :class:`~wingopt.results.OwnedDirectory` (the ownership rule of
+    :mod:`wingopt.results.ownership`: empty, new, or holding only what wingopt wrote there; the
+    spec and the problem file outside it): a user's ``records.jsonl`` is never appended to or cut.
+    """
+    owner = OwnedDirectory(out, inputs=spec_inputs(spec))
+    path = owner.path / "records.jsonl"
     if not resume and path.exists() and path.stat().st_size:
         raise OutputError(f"out = {str(out)!r}: records.jsonl exists; use --resume to continue it or another --out")
-    records = RecordLog(path, fresh=not resume)
+    records = RecordLog(path, fresh=not resume, owner=owner)
     tasks, shared = sweep_tasks(spec)
     t0 = time.perf_counter()
     by, ran = run_records(tasks, shared, records, engine, on_record)
     mine = [by[t.key] for t in tasks if t.key in by]
     flat = [{**r, **r.get("params", {})} for r in mine]
     rows = summary_rows(flat, spec.case_fields, METRICS)
-    tables = write_table(out / "table", rows)
+    tables = write_table(owner.path / "table", rows, owner)
     failed = [r for r in mine if r.get("status") != "ok"]
     summary = {
         "spec": spec.source,
@@ -128,5 +133,13 @@ def run_sweep(
         "mode": engine.settings.mode,
         "tables": [p.name for p in tables],
     }
-    write_json_atomic(out / "summary.json", summary)
+    owner.write_json("summary.json", summary)
     return summary
+
+
+def spec_inputs(spec: SweepSpec) -> list[tuple[str, str]]:
+    """The files a sweep reads (its spec, its problem files): never inside its output directory."""
+    out = [("spec", spec.source)]
+    for src in dict.fromkeys(str(r.problem.source) for r in spec.runs):
+        out.append(("problem", src))
+    return out

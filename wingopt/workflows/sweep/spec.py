@@ -40,11 +40,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from wingopt import resources
 from wingopt.errors import InputError, ProblemFileError
 from wingopt.estimation.mhe import MHESettings
 from wingopt.membrane.loads import LOAD_CASES
 from wingopt.problem import load_problem, parse_mesh, parse_problem
 from wingopt.problem.membrane import MembraneProblem
+from wingopt.resources import LIMITS
 from wingopt.workflows.studies import METHODS
 
 __all__ = ["SweepSpec", "Run", "load_spec", "parse_spec", "AXES"]
@@ -98,11 +100,20 @@ class SweepSpec:
 
 def load_spec(path: str | Path) -> SweepSpec:
     """Read and validate a sweep spec file."""
+    from wingopt.resources import check_input_file
+
+    if isinstance(path, bytes) or not isinstance(path, (str, Path)) or not str(path).strip():
+        raise InputError(f"spec = {path!r}: expected the path of a sweep spec (TOML)")
     path = Path(path)
+    check_input_file(path, "spec")
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
     except OSError as exc:
         raise InputError(f"spec = {str(path)!r}: cannot read it ({exc.strerror})") from None
+    except UnicodeDecodeError:
+        raise InputError(f"spec = {str(path)!r}: not a UTF-8 text file") from None
+    except RecursionError:
+        raise InputError(f"spec = {str(path)!r}: nested too deeply to be a sweep spec") from None
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{path}: not valid TOML: {exc}") from None
     return parse_spec(data, str(path), base=path.parent)
@@ -229,6 +240,13 @@ def parse_spec(data: dict, source: str = "<memory>", base: Path | None = None) -
     cluster = data.get("cluster", {})
     if not isinstance(cluster, dict):
         raise _err(source, "", "cluster", cluster, "a table of dask-jobqueue settings")
+    count = len(cases) * math.prod(len(v) for v in axes.values())
+    if count > LIMITS["tasks"]:
+        sizes = " x ".join(f"{len(v)} {k}" for k, v in axes.items())
+        raise InputError(
+            f"{source}: [grid] {sizes}{f' x {len(cases)} [[cases]]' if len(cases) > 1 else ''} = {count} tasks: more "
+            f"than the limit of {LIMITS['tasks']} tasks of one sweep; split the grid into smaller sweeps"
+        )
     runs, seen = [], set()
     for i, case in enumerate(cases):
         where = f"[[cases]] {i + 1} " if "cases" in data else "[grid] "
@@ -246,9 +264,34 @@ def parse_spec(data: dict, source: str = "<memory>", base: Path | None = None) -
                 raise _err(source, where, "cases", params, "distinct runs (this one appears twice)")
             seen.add(key)
             runs.append(run)
+    _check_sizes(runs, source)
     names = dict.fromkeys(k for r in runs for k in r.params)
     varied = tuple(k for k in names if len({repr(r.params.get(k)) for r in runs}) > 1)
     return SweepSpec(source, str(data.get("title", "")), tuple(runs), oracle, retries, cluster, varied)
+
+
+def _check_sizes(runs, source: str) -> None:
+    """One size estimate per distinct (mesh, truth mesh, duration, method) before any task runs."""
+    seen = set()
+    for run in runs:
+        method = run.params["method"]
+        key = (run.problem.nodes, run.truth_nodes, run.t_end, method)
+        if key in seen:
+            continue
+        seen.add(key)
+        samples = int(min(run.t_end / run.problem.identification.dt, 1e15)) + 1
+        knobs = {
+            "mesh": f'"mesh.nodes" {run.problem.nodes[0]}x{run.problem.nodes[1]}',
+            "samples": f"t_end = {run.t_end:g}",
+            "truth": f"truth_mesh = {run.truth_nodes[0]}x{run.truth_nodes[1]}",
+        }
+        est = resources.estimate_identify(
+            run.problem.nodes, samples, truth_nodes=run.truth_nodes, method=method, knobs=knobs
+        )
+        try:
+            resources.check(est)
+        except InputError as exc:
+            raise InputError(f"{source}: one task: {exc}") from None
 
 
 def _resolve(params: dict, problems: _Problems, where: str) -> Run:
