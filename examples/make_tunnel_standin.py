@@ -47,6 +47,7 @@ from wingopt.membrane import (
     tunnel_load,
 )
 from wingopt.membrane.dic_synth import synthesize_frames
+from wingopt.membrane.loads import push
 from wingopt.problem import load_problem
 from wingopt.results.dic_files import write_dic_npz, write_dice
 
@@ -67,16 +68,6 @@ def write_record(path: Path, meas, header: list[str]) -> Path:
         lines.append(f"{t:.6f}," + ",".join("" if np.isnan(v) else f"{v:.9g}" for v in row))
     path.write_text("\n".join(lines) + "\n")
     return path
-
-
-def push(width: float, height: float, peak: float = 0.004):
-    """An off-centre push (the calibration's release shape), zero on the frame."""
-
-    def shape(x, y):
-        xi, eta = np.asarray(x) / width, np.asarray(y) / height
-        return peak * 6.75 * xi**2 * (1 - xi) * 16 * eta * (1 - eta) * (0.6 + 0.4 * eta)
-
-    return shape
 
 
 def main(seed: int = 2012) -> list[Path]:

@@ -39,6 +39,19 @@ def _data_start(lines):
     return next(i for i, ln in enumerate(lines) if ln.startswith("SUBSET_ID")) + 1
 
 
+def _set_cell(path: Path, row: int, col: int, value) -> None:
+    """Replace one cell of a DICe file's data row ``row`` (``value``: text, or a function of the old text)."""
+
+    def edit(lines):
+        i = _data_start(lines) + row
+        cells = lines[i].rstrip("\n").split(",")
+        cells[col] = value(cells[col]) if callable(value) else value
+        lines[i] = ",".join(cells) + "\n"
+        return lines
+
+    _edit(path, edit)
+
+
 # -- DICe ---------------------------------------------------------------------------------------
 def test_dice_round_trip(dice_dir, frames):
     files = sorted(dice_dir.iterdir())
@@ -62,14 +75,7 @@ def test_dice_flagged_points_dropped_and_counted(tmp_path):
     write_dice(fr0, tmp_path, MAP)
     j = int(np.argmax(fr0.valid[2]))  # a good point of frame 2, given a failure status with positive sigma
 
-    def flag(lines):
-        i = _data_start(lines) + j
-        cells = lines[i].rstrip("\n").split(",")
-        cells[-1] = "7.0000E+00"  # SEARCH_FAILED
-        lines[i] = ",".join(cells) + "\n"
-        return lines
-
-    _edit(tmp_path / "DICe_solution_2.txt", flag)
+    _set_cell(tmp_path / "DICe_solution_2.txt", j, -1, "7.0000E+00")  # SEARCH_FAILED
     fr = read_dice(tmp_path, 300.0, MAP, EXT)
     assert dict(fr.report.dropped) == {"sigma": int((~fr0.valid).sum()), "status_flag": 1}
     expected = fr0.valid.copy()
@@ -158,41 +164,20 @@ def test_dice_missing_points_warn(dice_dir, caplog):
 
 
 def test_dice_nan_values_dropped_and_counted(dice_dir, caplog):
-    def put_nan(lines):
-        i = _data_start(lines) + 4
-        cells = lines[i].split(",")
-        cells[10] = "-nan"
-        lines[i] = ",".join(cells)
-        return lines
-
-    _edit(dice_dir / "DICe_solution_1.txt", put_nan)
+    _set_cell(dice_dir / "DICe_solution_1.txt", 4, 10, "-nan")
     with caplog.at_level(logging.WARNING):
         fr = read_dice(dice_dir, 300.0, MAP, EXT)
     assert "nan 1" in caplog.text and not fr.valid[1, 4]
 
 
 def test_dice_bad_cell_names_line_and_column(dice_dir):
-    def corrupt(lines):
-        i = _data_start(lines) + 2
-        cells = lines[i].split(",")
-        cells[1] = "abc"
-        lines[i] = ",".join(cells)
-        return lines
-
-    _edit(dice_dir / "DICe_solution_1.txt", corrupt)
+    _set_cell(dice_dir / "DICe_solution_1.txt", 2, 1, "abc")
     with pytest.raises(DataFileError, match=r"DICe_solution_1.txt:\d+: COORDINATE_X = 'abc': expected a number"):
         read_dice(dice_dir, 300.0, MAP, EXT)
 
 
 def test_dice_grid_change_between_frames(dice_dir):
-    def shift(lines):
-        i = _data_start(lines)
-        cells = lines[i].split(",")
-        cells[5] = f"{float(cells[5]) + 2.0:.4E}"  # MODEL_COORDINATES_X moved by 2 mm
-        lines[i] = ",".join(cells)
-        return lines
-
-    _edit(dice_dir / "DICe_solution_4.txt", shift)
+    _set_cell(dice_dir / "DICe_solution_4.txt", 0, 5, lambda c: f"{float(c) + 2.0:.4E}")  # MODEL_COORDINATES_X + 2 mm
     with pytest.raises(DataFileError, match="DICe_solution_4.txt: reference coordinates differ .* grid"):
         read_dice(dice_dir, 300.0, MAP, EXT)
 

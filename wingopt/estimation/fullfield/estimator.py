@@ -6,7 +6,10 @@
    to it; optionally thin-airfoil shapes), the priors weighed by their evidence (:mod:`.steady`,
    :mod:`.system`); the prestrains from their prior (the problem file's ±20 %, or a calibration's),
    whose uncertainty is part of the band: a steady field does not identify them;
-3. time-resolved (``mode="frames"``, the default with several frames): every frame's own load
+3. a buffeting record's frames do: the load keeps its shape while the membrane's stiffness and
+   inertia shape its response (:mod:`.tension`): their lift combination is fitted when the record
+   fluctuates enough and no calibration is given (``prestrain="auto"``, time-resolved mode);
+4. time-resolved (``mode="frames"``, the default with several frames): every frame's own load
    with the inertia and damping forces in the balance (:mod:`.frames`).
 
 The result is the package's one :class:`~wingopt.estimation.result.IdentificationResult`; ``info``
@@ -26,6 +29,7 @@ from wingopt.estimation.fullfield.frames import frame_loads
 from wingopt.estimation.fullfield.settings import FullFieldSettings
 from wingopt.estimation.fullfield.steady import PrestrainPrior, SteadyFit, fit_prior
 from wingopt.estimation.fullfield.system import PressureFromShape
+from wingopt.estimation.fullfield.tension import DynamicTension, dynamic_tension
 from wingopt.estimation.realistic.load_model import LoadShapes
 from wingopt.estimation.realistic.record_problem import ParameterPrior
 from wingopt.estimation.result import IdentificationResult
@@ -71,6 +75,14 @@ def fullfield_identify(
     settings : FullFieldSettings, optional
     initial_load : float, optional
         The load prior's pressure scale (Pa; its magnitude: DIC sees the sign); default the problem's.
+
+    Returns
+    -------
+    IdentificationResult
+        ``method="fullfield"``: per used frame (time-resolved) or the steady estimate repeated, the
+        load coefficients in the chosen prior's basis (``load_space``), the deflections, the lift and
+        its band; ``info`` holds the steady fit per prior, the prestrains and their source, the
+        tension from the dynamics when fitted, the misfit and the in-plane check.
     """
     s = settings or FullFieldSettings()
     t0 = time.perf_counter()
@@ -84,10 +96,18 @@ def fullfield_identify(
     B = data.basis
     y0 = data.mean_w - B @ data.mean_z
     weight = np.full(y0.size, 1.0 / data.tau**2)
-    fits = []
-    for label, shapes in _priors(model, s, p0):
-        system = PressureFromShape(fvk, data.mean_z, B, shapes.forces)
-        fits.append(fit_prior(label, shapes, system, y0, weight, pp, s.prestrain))
+    mode = s.mode if s.mode != "auto" else ("frames" if data.count > 1 else "steady")
+    systems = [(lb, sh, PressureFromShape(fvk, data.mean_z, B, sh.forces)) for lb, sh in _priors(model, s, p0)]
+    steady_mode = "fit" if s.prestrain == "fit" else "prior"
+    fits = [fit_prior(lb, sh, sy, y0, weight, pp, steady_mode) for lb, sh, sy in systems]
+    dyn = None
+    if s.prestrain == "dynamics" or (s.prestrain == "auto" and mode == "frames" and not pp.calibrated):
+        best = max(fits, key=lambda f: f.log_evidence)
+        dyn = dynamic_tension(data, best.shapes, best.system, y0, weight, pp)
+        if dyn.used:
+            fits = [fit_prior(lb, sh, sy, y0, weight, pp, "prior", (dyn.theta, dyn.cov)) for lb, sh, sy in systems]
+        elif s.prestrain == "dynamics":
+            log.warning("the frames' dynamics do not give the tension (%s): the prior's is used", dyn.reason)
     z = np.array([f.log_evidence for f in fits])
     w = np.exp(z - z.max())
     w /= w.sum()
@@ -96,7 +116,6 @@ def fullfield_identify(
     mean = float(w @ lifts)
     std = float(np.sqrt(max(w @ (stds**2 + lifts**2) - mean**2, 0.0)))
     best = fits[int(np.argmax(w))]
-    mode = s.mode if s.mode != "auto" else ("frames" if data.count > 1 else "steady")
     idx = np.flatnonzero(data.used)
     if mode == "frames":
         fl = frame_loads(data, best, s.inertia)
@@ -109,7 +128,7 @@ def fullfield_identify(
         load = np.broadcast_to(best.load(), (idx.size, best.load().size))
         deflection = np.broadcast_to(best.deflection(), (idx.size, model.n))
         lift, lift_std = np.full(idx.size, mean), np.full(idx.size, std)
-    info = _info(s, mode, data, fits, w, best, mean, std, pp, fvk)
+    info = _info(s, mode, data, fits, w, best, mean, std, pp, fvk, dyn)
     if mode == "frames":
         info["frames_chi2_per_datum_median"] = float(np.median(fl.chi2_per_datum))
     return IdentificationResult(
@@ -126,9 +145,9 @@ def fullfield_identify(
     )
 
 
-def _warnings(best: SteadyFit, pp: PrestrainPrior, data) -> list[str]:
+def _warnings(best: SteadyFit, pp: PrestrainPrior, data, dynamic: bool) -> list[str]:
     out = []
-    if not pp.calibrated:
+    if not pp.calibrated and not dynamic:
         rel = pp.std / pp.mean
         out.append(
             f"the DIC field does not identify the tension (a steady shape implies a pressure for any prestrain): "
@@ -147,11 +166,16 @@ def _warnings(best: SteadyFit, pp: PrestrainPrior, data) -> list[str]:
     return out
 
 
-def _info(s, mode, data, fits, w, best: SteadyFit, mean, std, pp: PrestrainPrior, fvk) -> dict:
+def _source(pp: PrestrainPrior, dyn: DynamicTension | None) -> str:
+    prior = "calibration prior" if pp.calibrated else "problem file prior"
+    return f"the frames' dynamics (buffeting) on the {prior}" if dyn is not None and dyn.used else prior
+
+
+def _info(s, mode, data, fits, w, best: SteadyFit, mean, std, pp: PrestrainPrior, fvk, dyn) -> dict:
     ex, ey = best.prestrain
     sx, sy = best.prestrain_std
     fr = data.frames
-    warnings = _warnings(best, pp, data)
+    warnings = _warnings(best, pp, data, dyn is not None and dyn.used)
     return {
         "backend": "full field (DIC): pressure from shape, static FvK balance (full order), priors weighed by evidence",
         "model": "nonlinear (FvK, full order)",
@@ -186,8 +210,9 @@ def _info(s, mode, data, fits, w, best: SteadyFit, mean, std, pp: PrestrainPrior
         },  # fmt: skip
         "parameters": {"prestrain_x": ex, "prestrain_y": ey, "damping": float(fvk.params.viscous_scale)},
         "parameters_std": {"prestrain_x": float(sx), "prestrain_y": float(sy), "damping": 0.0},
-        "prestrain_source": "calibration prior" if pp.calibrated else "problem file prior",
+        "prestrain_source": _source(pp, dyn),
         "prestrain_mode": s.prestrain,
+        "tension_from_dynamics": None if dyn is None else dyn.as_dict(pp),
         "prestrain_field_pull": best.pull,
         "adequacy": {"chi2_per_datum": best.post.chi2_per_datum, "data": best.post.data},
         "model_adequate": bool(best.post.chi2_per_datum < ADEQUATE_CHI2),

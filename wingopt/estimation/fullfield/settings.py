@@ -18,10 +18,14 @@ load (inertia included); ``auto``: ``frames`` when there are several frames, els
 PRIORS = ("interior", "frame", "aerodynamic")
 """Load priors: zero on the frame; acting up to it (free-edge shapes); thin-airfoil shapes."""
 
-PRESTRAIN = ("prior", "fit")
+PRESTRAIN = ("auto", "prior", "dynamics", "fit")
 """``prior``: the prestrains are the prior's (the problem file's, or a calibration's) and their
-uncertainty is carried into the band; ``fit``: the steady field's own pull on them is added (it
-comes only through the load prior's smoothness: docs/dic.md measures it)."""
+uncertainty is carried into the band; ``dynamics``: the frames' response to the buffeting fixes
+their lift combination (:mod:`.tension`; the prior where the record has too little dynamics);
+``auto``: ``dynamics`` in the time-resolved mode without a calibration, else ``prior`` (with a
+calibration the frames' valley pulled the prestrains 13 % off and the lift from +0.5 % to +0.8 %
+on the stand-in); ``fit``: the steady field's own pull
+on them is added (it comes only through the load prior's smoothness and misleads: docs/dic.md)."""
 
 
 @dataclass(frozen=True)
@@ -40,7 +44,7 @@ class FullFieldSettings:
         Prior pressure scale (Pa); ``None``: ``|initial_load|`` (the problem file's).
     kappa : float
         Factor on the load prior's std.
-    prestrain : {"prior", "fit"}
+    prestrain : {"auto", "prior", "dynamics", "fit"}
         See :data:`PRESTRAIN`.
     smoothing : float
         Curvature penalty of the frame fits, relative to the data's normal matrix.
@@ -59,7 +63,7 @@ class FullFieldSettings:
     edge_shapes: int = 20
     pressure: float | None = None
     kappa: float = 1.0
-    prestrain: str = "prior"
+    prestrain: str = "auto"
     smoothing: float = 1e-8
     inertia: bool = True
     min_valid: float = 0.5

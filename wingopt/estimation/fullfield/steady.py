@@ -111,9 +111,10 @@ def _solve(system: PressureFromShape, shapes: LoadShapes, y0: np.ndarray, weight
 
 def fit_prior(
     label: str, shapes: LoadShapes, system: PressureFromShape, y0: np.ndarray, weight: np.ndarray,
-    prior: PrestrainPrior, mode: str,
+    prior: PrestrainPrior, mode: str, given: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> SteadyFit:  # fmt: skip
-    """Fit one load prior (``y0 = W̄ - B ẑ``; ``weight = 1/tau^2``) with the prestrains as ``mode`` says."""
+    """Fit one load prior (``y0 = W̄ - B ẑ``; ``weight = 1/tau^2``) with the prestrains as ``mode`` says
+    (``"prior"``, ``"fit"``), or at ``given = (theta, cov)`` (the frames' dynamics, :mod:`.tension`)."""
 
     def post_at(theta) -> Posterior:
         return _solve(system, shapes, y0, weight, prior.at(theta))
@@ -123,9 +124,11 @@ def fit_prior(
             return np.inf  # outside the physical range, or far outside the prior
         return -post_at(theta).log_evidence + 0.5 * float(np.sum(np.asarray(theta) ** 2))
 
-    theta, cov = np.zeros(2), np.eye(2)
-    if mode == "fit":
-        res = minimize(neg_log_post, np.zeros(2), method="Nelder-Mead", options={"xatol": 1e-3, "fatol": 1e-3})
+    theta, cov = (np.zeros(2), np.eye(2)) if given is None else given
+    if mode == "fit" and given is None:
+        simplex = np.array([[0.0, 0.0], [0.5, 0.0], [0.0, 0.5]])  # half a prior std: the default's is 1e-4
+        opts = {"xatol": 1e-3, "fatol": 1e-3, "initial_simplex": simplex}
+        res = minimize(neg_log_post, np.zeros(2), method="Nelder-Mead", options=opts)
         theta = res.x
         with np.errstate(invalid="ignore"):
             H = _hessian(neg_log_post, theta, STEP / 4)

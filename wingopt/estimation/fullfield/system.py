@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
 from wingopt.membrane.full import FvKMembrane
@@ -96,26 +97,37 @@ class PressureFromShape:
     def __init__(self, fvk: FvKMembrane, z_hat: np.ndarray, basis: np.ndarray, forces: np.ndarray) -> None:
         self.fvk, self.z, self.basis, self.forces = fvk, np.asarray(z_hat, float), basis, forces
         self._cache: dict = {}
+        # The in-plane block and the coupling do not depend on the prestrain (a uniform prestrain's
+        # stress has no divergence); the w block is K_ww(0) + Tx Gx + Ty Gy. So the reduced tangent
+        # S(e0) = S0 + Tx Gx + Ty Gy with S0 = K_ww(0) - K_wu K_uu^-1 K_uw, formed once (dense, n x n),
+        # and so is the internal force: F(ẑ; e0) = F_nl(ẑ) + Tx Gx ẑ + Ty Gy ẑ.
+        par = fvk.params
+        bare = fvk.with_params(MembraneParameters(0.0, 0.0, par.viscous_scale, par.kelvin_voigt_scale))
+        n = fvk.n
+        u, v = bare.inplane(self.z)
+        K = bare.tangent(self.z, u, v).tocsc()
+        kwu = K[:n, n:]
+        coupled = spla.splu(K[n:, n:].tocsc()).solve(kwu.T.toarray())
+        self._s0 = K[:n, :n].toarray() - kwu @ coupled
+        self._gx, self._gy = fvk.gx.toarray(), fvk.gy.toarray()
+        self._fnl = bare.force(self.z)
 
     def at(self, prestrain: tuple[float, float]):
         """``(A, offset, solve, S, s, fvk)`` at ``prestrain``: ``y = W - B ẑ + offset``, ``solve(rhs)`` the
-        w part of ``K_t^-1 rhs``, ``S = K_t^-1 G``, ``s = K_t^-1 F(ẑ)`` and the membrane at ``prestrain``."""
+        reduced ``K_t^-1 rhs``, ``S = K_t^-1 G``, ``s = K_t^-1 F(ẑ)`` and the membrane at ``prestrain``."""
         key = (float(prestrain[0]), float(prestrain[1]))
         if key in self._cache:
             return self._cache[key]
         par = self.fvk.params
         fvk = self.fvk.with_params(MembraneParameters(key[0], key[1], par.viscous_scale, par.kelvin_voigt_scale))
-        n = fvk.n
-        u, v = fvk.inplane(self.z)
-        lu = spla.splu(fvk.tangent(self.z, u, v).tocsc())
+        tx, ty = fvk.prestress
+        factor = sla.cho_factor(self._s0 + tx * self._gx + ty * self._gy, check_finite=False)
 
         def solve(rhs: np.ndarray) -> np.ndarray:
-            rhs = np.asarray(rhs, float)
-            full = np.zeros((3 * n,) + rhs.shape[1:])
-            full[:n] = rhs
-            return lu.solve(full)[:n]
+            return sla.cho_solve(factor, np.asarray(rhs, float), check_finite=False)
 
-        X = solve(np.column_stack([self.forces, fvk.force(self.z)]))
+        force = self._fnl + tx * (self._gx @ self.z) + ty * (self._gy @ self.z)
+        X = solve(np.column_stack([self.forces, force]))
         out = (self.basis @ X[:, :-1], self.basis @ X[:, -1], solve, X[:, :-1], X[:, -1], fvk)
         if len(self._cache) > 64:
             self._cache.clear()
