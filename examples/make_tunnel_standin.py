@@ -17,9 +17,15 @@ estimators never read comments):
 * 300 Hz, 4.6 s (1381 frames), 2 % Gaussian noise per sensor (of its peak), 1 % of the frames
   dropped (empty cells);
 * the calibration record: the same membrane with no flow, released from an off-centre push of
-  unknown shape, 0.5 s at 300 Hz, 1 % noise (``wingopt calibrate``).
+  unknown shape, 0.5 s at 300 Hz, 1 % noise (``wingopt calibrate``);
+* the DIC frame set of the same run (the same trajectory, the first 1.5 s: 450 frames): a 40 x 20
+  grid of points, 10 µm noise on U, V, W and 1e-4 on the surface Lagrange strains, 2 % of the
+  points missing per frame, stored compactly (1 µm and 1e-5 steps, well below the noise) in
+  ``tunnel_dic_300Hz.npz`` with the truth beside it (``truth_*`` arrays the readers ignore); its
+  first three frames also as DICe solution files (``tunnel_dice/``, in mm, origin and axes as
+  ``examples/tunnel_dice.toml`` declares, DICe's in-plane strains): ``docs/dic.md``.
 
-    .venv/bin/python examples/make_tunnel_standin.py     # writes examples/data/tunnel_*.csv (minutes)
+    .venv/bin/python examples/make_tunnel_standin.py     # writes examples/data/tunnel_* (minutes)
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from wingopt.measurements.dic import DICMapping
 from wingopt.membrane import (
     Buffeting,
     MembraneParameters,
@@ -39,7 +46,10 @@ from wingopt.membrane import (
     simulate_truth,
     tunnel_load,
 )
+from wingopt.membrane.dic_synth import synthesize_frames
+from wingopt.membrane.loads import push
 from wingopt.problem import load_problem
+from wingopt.results.dic_files import write_dic_npz, write_dice
 
 DATA = Path(__file__).parent / "data"
 PRESTRAIN = (0.056, 0.046)
@@ -47,6 +57,9 @@ RATE_HZ = 300.0
 DURATION_S = 4.6
 SUBSTEPS = 8  # 300 Hz sampling: the integrator's step is 0.42 ms (docs/tunnel.md: 3e-3 of the peak)
 TRUTH_NODES = (49, 25)
+DIC_FRAMES = 450  # the first 1.5 s of the run
+DIC_GRID = (40, 20)
+DICE_MAPPING = DICMapping(origin=(-70.0, 35.0), y_axis="-y", unit="mm")  # as examples/tunnel_dice.toml
 
 
 def write_record(path: Path, meas, header: list[str]) -> Path:
@@ -55,16 +68,6 @@ def write_record(path: Path, meas, header: list[str]) -> Path:
         lines.append(f"{t:.6f}," + ",".join("" if np.isnan(v) else f"{v:.9g}" for v in row))
     path.write_text("\n".join(lines) + "\n")
     return path
-
-
-def push(width: float, height: float, peak: float = 0.004):
-    """An off-centre push (the calibration's release shape), zero on the frame."""
-
-    def shape(x, y):
-        xi, eta = np.asarray(x) / width, np.asarray(y) / height
-        return peak * 6.75 * xi**2 * (1 - xi) * 16 * eta * (1 - eta) * (0.6 + 0.4 * eta)
-
-    return shape
 
 
 def main(seed: int = 2012) -> list[Path]:
@@ -108,7 +111,32 @@ def main(seed: int = 2012) -> list[Path]:
         "released at rest from an off-centre push (shape unknown to the estimator), 300 Hz, 1 % noise",
     ]
     out.append(write_record(DATA / "tunnel_calibration_300Hz.csv", cal.measurements, header))
+    out += write_dic(fwd, rec, seed)
     return out
+
+
+def write_dic(fwd, rec, seed: int) -> list[Path]:
+    """The DIC frame set of the same run: NPZ (450 frames) and three DICe solution files."""
+    t, z = rec.trajectory.t[:DIC_FRAMES], rec.trajectory.z[:DIC_FRAMES]
+    lift = rec.lift_history[:DIC_FRAMES]
+    note = (
+        f"SYNTHETIC DIC frames of the tunnel stand-in (examples/make_tunnel_standin.py, seed {seed}): the run of "
+        f"tunnel_300Hz.csv, first {DIC_FRAMES} frames; true mean lift over them {lift.mean():.6f} N"
+    )
+    kw = {"grid": DIC_GRID, "noise_displacement": 1e-5, "noise_strain": 1e-4, "missing": 0.02}
+    frames = synthesize_frames(fwd.structure, t, z, seed=seed + 2, source=note, **kw)
+    truth = {  # beside the data; the readers ignore them
+        "truth_lift": lift,
+        "truth_load_factor": rec.load_factor[:DIC_FRAMES],
+        "truth_load": np.array("tunnel-LE"),
+        "truth_prestrain": np.array(PRESTRAIN),
+    }
+    quantum = {"u": 1e-6, "v": 1e-6, "w": 1e-6, "exx": 1e-5, "eyy": 1e-5, "exy": 1e-5}
+    path = write_dic_npz(frames, DATA / "tunnel_dic_300Hz.npz", quantum=quantum, extra=truth)
+    dice = synthesize_frames(fwd.structure, t[:3], z[:3], seed=seed + 3, source=note, strain_kind="inplane", **kw)
+    files = write_dice(dice, DATA / "tunnel_dice", DICE_MAPPING)
+    print(f"DIC: {frames.n_frames} frames x {frames.n_points} points -> {path} ({path.stat().st_size >> 10} KiB)")
+    return [path, *files]
 
 
 if __name__ == "__main__":

@@ -22,6 +22,8 @@ ENTRY_POINTS = [
     "wingopt.workflows.protocols:simulate_case",
     "wingopt.membrane.truth:simulate_truth",
     "wingopt.membrane.forward:forward_model",
+    "wingopt.estimation.fullfield:fullfield_identify",
+    "wingopt.membrane.virtual_sensors:virtual_sensors",
 ]
 
 

@@ -18,7 +18,7 @@ from wingopt.cli import main
 from wingopt.errors import InputError
 from wingopt.estimation.options import OPTION_FLAGS, IdentifyOptions
 from wingopt.estimation.registry import REGISTRY, check_options, resolve
-from wingopt.estimation.runners import batch_settings, build, ekf_settings, mhe_settings
+from wingopt.estimation.runners import batch_settings, build, ekf_settings, fullfield_settings, mhe_settings
 from wingopt.membrane import MembraneModel
 from wingopt.problem import load_problem
 from wingopt.values import LambdaChoice
@@ -79,6 +79,8 @@ def _settings(spec, opts):
         return batch_settings(spec, opts)
     if spec.method == "ekf":
         return ekf_settings(spec, opts)
+    if spec.method == "fullfield":
+        return fullfield_settings(opts)
     return None
 
 
@@ -125,6 +127,11 @@ def test_auto_resolves_to_the_documented_pairs():
         resolve("mhe", "fvk")
     with pytest.raises(InputError, match="no such estimator"):
         resolve("jekf-tuned", stream=True)
+    # DIC frames: the full-field estimator by default; it is refused without frames
+    assert resolve(frames=True).method == "fullfield" and resolve(frames=True).model == "fvk"
+    assert resolve("batch", frames=True).method == "batch"
+    with pytest.raises(InputError, match="fullfield.*DIC frames.*--dic"):
+        resolve("fullfield")
 
 
 def test_the_command_line_refuses_an_unused_option_in_one_line(tmp_path, capsys):

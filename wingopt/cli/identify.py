@@ -78,6 +78,9 @@ def register(sub, common) -> None:
     src.add_argument(
         "--follow", metavar="FILE.csv", help="stream a CSV that grows: one estimate per sample as rows arrive"
     )
+    src.add_argument(
+        "--dic", metavar="DIR|FILE.npz", help="DIC frames: the full-field estimator (another --method: virtual sensors)"
+    )
     p.add_argument("--noise", default="1", help="simulated noise in PERCENT of each sensor's peak (default 1)")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     p.add_argument("--truth-mesh", default="49x25", help="mesh of the simulated truth (default 49x25)")
@@ -222,6 +225,7 @@ def run(args) -> int:
         noise_percent=parse_noise(args.noise) * 100 if args.load else 1.0,
         seed=args.seed,
         data=args.data,
+        dic=args.dic,
         method=args.method,
         model=args.model,
         options=options,

@@ -15,6 +15,7 @@ method         membrane                 stream  estimator
 ``batch``      berger, fvk              no      whole-record fit, prestrains and damping identified (:mod:`.realistic`)
 ``mhe``        linear                   yes     real-time iteration MHE (:mod:`.streaming`)
 ``ekf``        berger, fvk              yes     extended Kalman filter on the batch model (:mod:`.streaming.nonlinear`)
+``fullfield``  fvk                      no      DIC frames: pressure from the measured shape (:mod:`.fullfield`)
 =============  =======================  ======  =========================================================
 """
 
@@ -36,10 +37,14 @@ __all__ = [
     "check_options",
     "METHOD_ALIASES",
     "MODEL_ALIASES",
+    "FRAME_METHODS",
 ]
 
-METHODS = ("auto", "mhe", "batch", "jekf-seed", "jekf-tuned", "ekf")
+METHODS = ("auto", "mhe", "batch", "jekf-seed", "jekf-tuned", "ekf", "fullfield")
 """Estimator names (``auto``: :func:`resolve` chooses)."""
+
+FRAME_METHODS = ("fullfield",)
+"""Estimators of DIC frames (every other one takes stretch-sensor series: from frames, virtual sensors)."""
 
 MODELS = ("auto", "linear", "berger", "fvk")
 """Membrane physics an estimator assumes (``auto``: :func:`resolve` chooses)."""
@@ -122,17 +127,26 @@ REGISTRY: dict[tuple[str, str, bool], EstimatorSpec] = {
         ),
         EstimatorSpec("ekf", "berger", True, _ALWAYS | {"modes"}, "extended Kalman filter, Berger membrane"),
         EstimatorSpec("ekf", "fvk", True, _ALWAYS | {"modes"}, "extended Kalman filter, FvK membrane"),
+        # DIC frames: the noise is the frames' (from the fits), the sign is seen; initial_load is the prior's scale
+        EstimatorSpec(
+            "fullfield", "fvk", False, frozenset({"initial_load", "load_model"}), "DIC full field, FvK membrane"
+        ),
     )
 }
 
 
-def resolve(method: str = "auto", model: str = "auto", *, stream: bool = False, simulated: str | None = None):
+def resolve(
+    method: str = "auto", model: str = "auto", *, stream: bool = False, simulated: str | None = None,
+    frames: bool = False,
+):  # fmt: skip
     """The :class:`EstimatorSpec` of a method and a membrane (``auto`` resolved).
 
     ``simulated``: the truth physics of a simulated record (``None`` for measured data). ``auto``
     picks the estimator that is right on a real membrane for measured data and for simulated
     nonlinear truth (the FvK membrane, measured in docs/estimation_realistic.md), the seed's
-    linear MHE on the seed's simulated linear protocol, and matches a given membrane.
+    linear MHE on the seed's simulated linear protocol, and matches a given membrane. ``frames``:
+    the data are DIC frames: ``auto`` is the full-field estimator (another method gets the
+    frames' virtual sensors); a frame estimator without frames is refused.
     """
     method = METHOD_ALIASES.get(method, method)
     model = MODEL_ALIASES.get(model, model)
@@ -140,6 +154,10 @@ def resolve(method: str = "auto", model: str = "auto", *, stream: bool = False, 
         raise InputError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
     if model not in MODELS:
         raise InputError(f"model = {model!r}: expected one of {', '.join(MODELS)}")
+    if method in FRAME_METHODS and not frames:
+        raise InputError(f"method {method!r} estimates from DIC frames: give them (wingopt identify --dic FRAMES)")
+    if method == "auto" and frames and not stream:
+        method = "fullfield"
     if model == "auto":
         if method in ("mhe", "jekf-seed", "jekf-tuned"):
             model = "linear"

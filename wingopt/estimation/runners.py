@@ -15,6 +15,7 @@ import logging
 import numpy as np
 
 from wingopt.errors import InputError
+from wingopt.estimation.fullfield import FullFieldSettings, fullfield_identify
 from wingopt.estimation.lambda_rules import resolve as resolve_rule
 from wingopt.estimation.mhe import STATE_PRIOR_EVIDENCE, MHESettings, mhe_identify
 from wingopt.estimation.options import IdentifyOptions
@@ -26,7 +27,16 @@ from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements import Measurements
 from wingopt.membrane import MembraneModel
 
-__all__ = ["mhe_settings", "batch_settings", "ekf_settings", "build", "run_record", "build_stream", "model_form_band"]
+__all__ = [
+    "mhe_settings",
+    "batch_settings",
+    "ekf_settings",
+    "fullfield_settings",
+    "build",
+    "run_record",
+    "build_stream",
+    "model_form_band",
+]
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +86,17 @@ def batch_settings(spec: EstimatorSpec, options: IdentifyOptions, base: Realisti
     return (base or RealisticSettings()).replace(**kw)
 
 
+def fullfield_settings(options: IdentifyOptions, base: FullFieldSettings | None = None) -> FullFieldSettings:
+    """The full-field estimator's settings of ``options``: ``load_model`` constant is the steady mode,
+    varying the time-resolved one; ``initial_load`` the load prior's pressure scale."""
+    kw: dict = {}
+    if options.load_model is not None:
+        kw["mode"] = {"constant": "steady", "varying": "frames"}.get(options.load_model, "auto")
+    if options.initial_load is not None:
+        kw["pressure"] = abs(options.initial_load)
+    return (base or FullFieldSettings()).replace(**kw)
+
+
 def ekf_settings(spec: EstimatorSpec, options: IdentifyOptions):
     """The streaming extended Kalman filter's settings of ``options``."""
     from wingopt.estimation.streaming.types import NonlinearStreamSettings
@@ -92,17 +113,23 @@ def run_record(
     *,
     truth=None,
     settings=None,
+    frames=None,
 ) -> IdentificationResult:
     """Run the record estimator ``spec`` on ``measurements``.
 
     ``truth`` (a simulated record) is handed only to ``jekf-seed``, which tunes its lambda on the
     noise-free truth as the seed did; ``settings`` replaces the default settings the options start
-    from (an :class:`MHESettings` or a :class:`RealisticSettings`).
+    from (an :class:`MHESettings`, a :class:`RealisticSettings` or a :class:`FullFieldSettings`);
+    ``frames`` (:class:`~wingopt.measurements.dic.DICFrames`) are the full-field estimator's data.
     """
     if spec.stream:
         raise InputError(f"{spec.label}: a streaming estimator, use build_stream")
     options = IdentifyOptions() if options is None else options
     p0 = options.initial_load
+    if spec.method == "fullfield":
+        if frames is None:
+            raise InputError(f"{spec.label}: no DIC frames given (wingopt identify --dic FRAMES)")
+        return fullfield_identify(model, frames, fullfield_settings(options, settings))
     if spec.method == "mhe":
         result = mhe_identify(model, measurements, mhe_settings(options, settings), initial_load=p0)
         result = check_mhe_result(model, measurements, result)
@@ -135,18 +162,20 @@ def build(
     truth=None,
     settings=None,
     keep: bool = True,
+    frames=None,
 ) -> Estimator:
     """Any estimator of the registry behind the one protocol (:mod:`wingopt.estimation.protocol`).
 
-    ``truth`` and ``settings`` as :func:`run_record` (record estimators); ``keep``: a stream keeps its
-    estimates for ``result()``.
+    ``truth``, ``settings`` and ``frames`` as :func:`run_record` (record estimators); ``keep``: a
+    stream keeps its estimates for ``result()``.
     """
     options = IdentifyOptions() if options is None else options
     check_options(spec, options)
     if spec.stream:
         return StreamEstimator(build_stream(spec, model, options), f"{spec.method}-stream", keep)
     return RecordEstimator(
-        lambda meas: run_record(spec, model, meas, options, truth=truth, settings=settings), model.problem.sensor_names
+        lambda meas: run_record(spec, model, meas, options, truth=truth, settings=settings, frames=frames),
+        model.problem.sensor_names,
     )
 
 

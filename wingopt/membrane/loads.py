@@ -23,6 +23,7 @@ __all__ = [
     "LOAD_CASES",
     "TUNNEL_LOADS",
     "bubble",
+    "push",
     "leading_edge_load",
     "tunnel_load",
     "Gust",
@@ -90,6 +91,16 @@ def bubble(width: float, height: float, peak: float = 0.01) -> Callable[[np.ndar
     def shape(x, y):
         xi, eta = np.asarray(x) / width, np.asarray(y) / height
         return peak * 16.0 * xi * (1 - xi) * eta * (1 - eta)
+
+    return shape
+
+
+def push(width: float, height: float, peak: float = 0.004) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """An off-centre push, zero on the frame: a calibration record's release shape (the tunnel stand-in's)."""
+
+    def shape(x, y):
+        xi, eta = np.asarray(x) / width, np.asarray(y) / height
+        return peak * 6.75 * xi**2 * (1 - xi) * 16 * eta * (1 - eta) * (0.6 + 0.4 * eta)
 
     return shape
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from wingopt.problem.dic import DICSettings, dic_from_table
 from wingopt.problem.fields import Table
 
 __all__ = ["MembraneMaterial", "StretchSensorSpec", "IdentificationSettings", "MembraneProblem", "from_table"]
@@ -98,7 +99,10 @@ weighs interior and frame by evidence; a steady record, whose four means cannot 
 
 @dataclass(frozen=True)
 class MembraneProblem:
-    """A rectangular membrane wing with stretch sensors, clamped (zero deflection) on all edges."""
+    """A rectangular membrane wing with stretch sensors, clamped (zero deflection) on all edges.
+
+    ``dic``: the ``[dic]`` table (how DIC frames map to the wing, :mod:`wingopt.problem.dic`), if any.
+    """
 
     width: float
     height: float
@@ -108,6 +112,7 @@ class MembraneProblem:
     identification: IdentificationSettings = IdentificationSettings()
     name: str = "membrane"
     source: str = "<memory>"
+    dic: DICSettings | None = None
 
     kind = "membrane"
 
@@ -209,6 +214,7 @@ def from_table(root: Table, name: str) -> MembraneProblem:
         else:
             noise = (ident.number("noise_std", positive=True),)
     ident.finish()
+    dic = dic_from_table(root.table("dic")) if root.has("dic") else None
     root.finish()
     return MembraneProblem(
         width=width,
@@ -235,4 +241,5 @@ def from_table(root: Table, name: str) -> MembraneProblem:
         ),
         name=name,
         source=root.source,
+        dic=dic,
     )

@@ -34,12 +34,14 @@ from wingopt.estimation.registry import check_options, resolve
 from wingopt.estimation.result import IdentificationResult
 from wingopt.estimation.runners import build
 from wingopt.measurements import Measurements, read_measurements
+from wingopt.measurements.dic import DICFrames
 from wingopt.membrane import MembraneModel, TruthRecord
 from wingopt.membrane.loads import LOAD_CASES
 from wingopt.problem import load_problem
 from wingopt.results import ResultDirectory, write_csv, write_json
 from wingopt.validate import check_nodes, check_number, check_seed
 from wingopt.values import LambdaChoice, NoiseLevel
+from wingopt.workflows.dic import dic_record
 from wingopt.workflows.protocols import TRUTH_NODES, check_truth_settings, simulate_case
 from wingopt.workflows.studies import evaluate, load_field, protocol_sign
 
@@ -147,6 +149,7 @@ def identify(
     noise_percent: float = 1.0,
     seed: int = 0,
     data: str | Path | Measurements | np.ndarray | None = None,
+    dic: str | Path | DICFrames | None = None,
     method: str = "auto",
     model: str = "auto",
     options: IdentifyOptions | None = None,
@@ -180,6 +183,10 @@ def identify(
     data : path, Measurements or array, optional
         Measured record instead of ``load``: a CSV file (``t`` column + one column per sensor), a
         :class:`Measurements`, or an array ``(N, 1 + p)`` of rows ``t, s_1 .. s_p`` (problem's sensor order).
+    dic : path or DICFrames, optional
+        DIC frames instead (:mod:`wingopt.workflows.dic`, mapped by the problem's ``[dic]``): the
+        full-field estimator by default (``method="fullfield"``); any other method gets the frames'
+        virtual stretch sensors (slope route) with the first frame's shape as its initial deflection.
     method, model : str
         The estimator and the membrane it assumes (:data:`wingopt.estimation.registry.METHODS`,
         :data:`~wingopt.estimation.registry.MODELS`); ``auto``: see the module docstring.
@@ -219,8 +226,10 @@ def identify(
     if not problem.sensors:
         raise InputError(f"problem {problem.name!r}: no [[sensors]]: identification needs stretch sensors")
     check_seed(seed)
-    if (load is None) == (data is None):
-        raise InputError("identify: give exactly one of load= (simulated protocol) or data= (measured CSV)")
+    if sum(v is not None for v in (load, data, dic)) != 1:
+        raise InputError(
+            "identify: give exactly one of load= (simulated protocol), data= (measured CSV) or dic= (frames)"
+        )
     if load is not None and (not isinstance(load, str) or load not in LOAD_CASES):
         raise InputError(f"load = {load!r}: expected one of {', '.join(LOAD_CASES)}")
     if not isinstance(method, str) or not isinstance(model, str):
@@ -233,12 +242,18 @@ def identify(
         truth_nodes = check_nodes(truth_nodes, "truth_nodes")
     if gust is not None and not callable(getattr(gust, "factor", None)):
         raise InputError(f"gust = {gust!r}: expected a wingopt.membrane.Gust or None")
-    if settings is not None and type(settings).__name__ not in ("MHESettings", "RealisticSettings"):
-        raise InputError(f"settings = {settings!r}: expected an MHESettings or a RealisticSettings (or None)")
+    if settings is not None and type(settings).__name__ not in (
+        "MHESettings",
+        "RealisticSettings",
+        "FullFieldSettings",
+    ):
+        raise InputError(
+            f"settings = {settings!r}: expected an MHESettings, RealisticSettings or FullFieldSettings (or None)"
+        )
     opts = _options(options, initial_load=initial_load, noise_std=noise_std, lam=lam)
-    spec = resolve(method, model, simulated=truth if load is not None else None)
+    spec = resolve(method, model, simulated=truth if load is not None else None, frames=dic is not None)
     check_options(spec, opts)
-    if settings is not None and spec.method not in ("mhe", "batch"):
+    if settings is not None and spec.method not in ("mhe", "batch", "fullfield"):
         raise InputError(f"settings: the {spec.label} takes no settings object")
     if nodes is not None:
         problem = problem.with_mesh(nodes)
@@ -251,7 +266,7 @@ def identify(
         resources.estimate_identify(problem.nodes, samples, truth_nodes=truth_mesh, method=spec.method), max_memory
     )
     membrane = MembraneModel.from_problem(problem)
-    case, report, protocol = None, None, {}
+    case, report, protocol, frames = None, None, {}, None
     if load is not None:
         case = simulate_case(
             problem, load, fraction, seed, truth_nodes, t_end,
@@ -272,6 +287,12 @@ def identify(
             else f"{truth} (prestrain {truth_prestrain}, damping x{truth_damping:g}"
             + (", gust)" if gust is not None else ")"),
         }
+    elif dic is not None:
+        problem, frames, meas, report = dic_record(
+            problem, dic, "fullfield" if spec.method == "fullfield" else "sensors"
+        )
+        membrane = MembraneModel.from_problem(problem)  # the first frame's shape may be its initial deflection
+        meas = meas if opts.noise_std is None else _with_noise_std(meas, opts.noise_std)
     elif isinstance(data, (str, Path)):
         if Path(data).is_dir():
             raise InputError(f"data = {str(data)!r}: is a directory, expected a CSV file")
@@ -285,7 +306,7 @@ def identify(
     prior = opts.initial_load if opts.initial_load is not None else problem.identification.initial_load
     warnings = sanity.record_checks(membrane, meas, prior)
     t0 = time.perf_counter()
-    result = build(spec, membrane, opts, truth=case, settings=settings).run(meas)
+    result = build(spec, membrane, opts, truth=case, settings=settings, frames=frames).run(meas)
     wall = time.perf_counter() - t0
     warnings += sanity.fit_checks(membrane, meas, result, sanity_sigma(meas, result))
     warnings += [w for w in result.info.get("warnings", []) if w not in warnings]  # the estimator's adequacy
