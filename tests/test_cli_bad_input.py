@@ -125,5 +125,5 @@ def test_api_errors_name_the_field():
         identify(membrane, load="L1", method="kalman")
     with pytest.raises(InputError, match="noise = 5"):
         identify(membrane, load="L1", noise=5)
-    with pytest.raises(InputError, match="exactly one of load= .* or data="):
+    with pytest.raises(InputError, match="exactly one of load= .*data= .*dic="):
         identify(membrane)
