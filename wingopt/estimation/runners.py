@@ -22,7 +22,7 @@ from wingopt.estimation.options import IdentifyOptions
 from wingopt.estimation.protocol import Estimator, RecordEstimator, StreamEstimator
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify
 from wingopt.estimation.realistic.mhe_check import check_mhe_result
-from wingopt.estimation.registry import EstimatorSpec, check_options
+from wingopt.estimation.registry import EstimatorSpec, check_options, resolve
 from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements import Measurements
 from wingopt.membrane import MembraneModel
@@ -186,10 +186,16 @@ def build_stream(spec: EstimatorSpec, model: MembraneModel, options: IdentifyOpt
     options = IdentifyOptions() if options is None else options
     if spec.method == "ekf":
         from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator
+        from wingopt.estimation.streaming.steady_refit import SteadyRefit
 
-        return NonlinearStreamingEstimator(
+        ekf = NonlinearStreamingEstimator(
             model, ekf_settings(spec, options), noise_std=options.noise_std, initial_load=options.initial_load
         )
+        if spec.model != "fvk":
+            return ekf
+        batch = resolve("batch", "fvk")  # a steady stream's answer is the batch estimate of its record
+        names, std = model.problem.sensor_names, options.noise_std
+        return SteadyRefit(ekf, lambda meas: run_record(batch, model, meas, options), names, noise_std=std)
     from wingopt.estimation.streaming import StreamingEstimator, StreamSettings
 
     return StreamingEstimator(model, StreamSettings(mhe=mhe_settings(options)), options.noise_std, options.initial_load)

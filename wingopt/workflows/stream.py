@@ -175,12 +175,20 @@ def follow(
             failure = exc
             lines.reason = _stopped_by(exc)
         live.close()
+        steady = None
+        if failure is None and hasattr(est, "finish"):
+            try:
+                steady = est.finish()
+            except BaseException as exc:  # noqa: BLE001 - the filter's record so far is still written
+                failure, lines.reason = exc, _stopped_by(exc)
         try:
             summary = _summary(est, parser, lines.reason, cpu, wall, bad, first_bad, name, problem, live.rows)
         except Exception as exc:  # noqa: BLE001 - the estimator's state after a failure may not summarise
             summary = {"problem": problem.name, "source": name, "stopped": lines.reason, "samples": live.rows,
                        "rows_written": live.rows, "lift_N": None, "lift_std_N": None,
                        "summary_error": f"{type(exc).__name__}: {exc}", "warnings": []}  # fmt: skip
+        if steady is not None:
+            summary.update(_steady_summary(est, steady, summary))
         if lines.restarts:
             summary["restarts"] = list(lines.restarts)
         scale = sanity.scale_warnings(peak[0], peak[1], problem.material.prestrain)
@@ -294,4 +302,27 @@ def _summary(est, parser, reason, cpu, wall, bad, first_bad, source, problem, ro
         "latency": lat,
         "estimator": info,
         "warnings": warnings,
+    }
+
+
+def _steady_summary(est, result, summary: dict) -> dict:
+    """A steady stream's final answer: the whole-record estimate of its samples (the batch's), the
+    live filter's last estimate beside it, and the refits' trace."""
+    lift, std = result.reported_lift
+    live = {k: summary.get(k) for k in ("lift_N", "lift_std_N", "chi2_per_datum", "adequate")}
+    chi2 = result.info.get("adequacy", {}).get("chi2_per_datum")
+    own = [w for w in summary.get("warnings", []) if "window misfit" not in w]  # the refit explains the record
+    return {
+        "lift_N": lift,
+        "lift_std_N": std,
+        "chi2_per_datum": chi2,
+        "adequate": bool(result.info.get("model_adequate", True)),
+        "record": "steady",
+        "answer": "the whole-record (batch) estimate of the stream's samples: a steady record, no release transient",
+        "live_filter": live,
+        "refits": est.refits,
+        "steady": {
+            k: result.info.get(k) for k in ("tension", "solutions", "chosen", "model", "parameters", "parameters_std")
+        },  # fmt: skip
+        "warnings": own + list(result.info.get("warnings", [])),
     }
