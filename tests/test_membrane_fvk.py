@@ -188,7 +188,7 @@ def test_record_generator(problem):
     dropped = simulate_truth(forward_model(problem, "linear", nodes=(13, 7)), "L1", RecordProtocol(t_end=0.2, drop=0.1))
     lost = np.isnan(dropped.measurements.values).any(axis=1)
     assert 5 <= lost.sum() <= 40 and not lost[0]
-    with pytest.raises(InputError, match="physics"):
+    with pytest.raises(InputError, match="truth = 'exact': expected one of linear, berger, fvk"):
         simulate_case(problem, "L1", 0.0, truth="exact")
     with pytest.raises(InputError, match="load"):
         simulate_case(problem, "L9", 0.0)

@@ -44,14 +44,15 @@ def test_calibration_finds_the_tension_the_file_does_not_know(calibrated):
     ident = load_problem(path).identification
     ex, ey = ident.prestrain
     sx, sy = ident.prestrain_std
-    nu = 0.5  # the combination the first mode sees: ex kx + ey ky (kx = (pi/W)^2 = ky / 4)
+    # the combination the first mode sees: ex kx + ey ky (kx = (pi/W)^2 = ky / 4)
     mode1 = (ex + 4 * ey) / 5
     true1 = (TRUE_PRESTRAIN[0] + 4 * TRUE_PRESTRAIN[1]) / 5
     assert mode1 == pytest.approx(true1, rel=0.02)
     assert abs(ex - TRUE_PRESTRAIN[0]) <= 3 * sx and abs(ey - TRUE_PRESTRAIN[1]) <= 3 * sy
-    assert ident.prestrain_correlation < -0.5  # a ringing record fixes the combination, not the split
+    # the fit's -0.95 (the ringing fixes the combination, not the split), diluted by the 3 % model-form
+    # floor on each prestrain, which the fit's correlation does not carry
+    assert -0.6 < ident.prestrain_correlation < -0.2
     assert ident.calibration.startswith("tunnel_calibration_300Hz.csv")
-    del nu
 
 
 def test_the_calibrated_file_with_a_declared_aerodynamic_load_gives_the_lift(calibrated, tmp_path):

@@ -28,6 +28,8 @@ _LAZY = {
     "write_morph_outputs": "wingopt.workflows.morph",
     "identify": "wingopt.workflows.identify",
     "write_identify_outputs": "wingopt.workflows.identify",
+    "calibrate_membrane": "wingopt.workflows.calibrate",
+    "calibrated_problem": "wingopt.workflows.calibrate",
     "read_measurements": "wingopt.measurements.csv_file",
     "run_demo": "wingopt.workflows.demo",
 }

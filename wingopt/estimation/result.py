@@ -87,9 +87,10 @@ class IdentificationResult:
 
     @property
     def reported_lift(self) -> tuple[float, float | None]:
-        """The lift a summary reports and its 1-sigma: the last estimate, or for a steady record
-        (``info["record"] == "steady"``) the steady lift, which the history fluctuates about."""
-        if self.info.get("record") == "steady":
+        """The lift a summary reports and its 1-sigma: the last estimate, or for a steady record (the
+        steady estimator's, the DIC frames': ``info["steady_lift_N"]``) the steady lift, which the
+        history fluctuates about."""
+        if self.info.get("steady_lift_N") is not None:
             return float(self.info["steady_lift_N"]), float(self.info["steady_lift_std_N"])
         return float(self.lift[-1]), None if self.lift_std is None else float(self.lift_std[-1])
 

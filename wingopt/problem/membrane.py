@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from wingopt.errors import InputError
 from wingopt.problem.dic import DICSettings, dic_from_table
 from wingopt.problem.fields import Table
 
@@ -88,13 +89,13 @@ class IdentificationSettings:
 
 
 FREE_PARAMETERS = ("prestrain_x", "prestrain_y", "damping")
+"""Names allowed in ``[identification] free_parameters``."""
 
 PRESSURE_PRIORS = ("auto", "interior", "frame", "aerodynamic")
 """Where the pressure may act: ``interior`` (zero on the frame, the seed's loads), ``frame`` (up to
 the frame: smooth interior shapes plus free-edge ones), ``aerodynamic`` (thin-airfoil shapes from
 the leading edge: an assumption that narrows a steady record's band), ``auto`` (a transient record
 weighs interior and frame by evidence; a steady record, whose four means cannot tell, takes frame)."""
-"""Names allowed in ``[identification] free_parameters``."""
 
 
 @dataclass(frozen=True)
@@ -121,6 +122,22 @@ class MembraneProblem:
         from wingopt.validate import check_nodes
 
         return dataclasses.replace(self, nodes=check_nodes(nodes))
+
+    def with_identification(self, **fields) -> MembraneProblem:
+        """The same problem with ``[identification]`` fields replaced, as a problem file would set them
+        (e.g. ``pressure_prior="aerodynamic", leading_edge="x0"``)."""
+        known = {f.name for f in dataclasses.fields(IdentificationSettings)}
+        for name in fields:
+            if name not in known:
+                raise InputError(f"identification.{name}: unknown field; expected one of {', '.join(sorted(known))}")
+        if "pressure_prior" in fields and fields["pressure_prior"] not in PRESSURE_PRIORS:
+            raise InputError(
+                f"identification.pressure_prior = {fields['pressure_prior']!r}: expected one of "
+                + ", ".join(PRESSURE_PRIORS)
+            )
+        if "leading_edge" in fields and fields["leading_edge"] not in (None, "x0", "x1"):
+            raise InputError(f"identification.leading_edge = {fields['leading_edge']!r}: expected x0, x1 or None")
+        return dataclasses.replace(self, identification=dataclasses.replace(self.identification, **fields))
 
     def with_sensors(self, sensors) -> MembraneProblem:
         return dataclasses.replace(self, sensors=tuple(sensors))

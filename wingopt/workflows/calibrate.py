@@ -32,7 +32,13 @@ from wingopt.validate import check_number
 
 log = logging.getLogger(__name__)
 
-__all__ = ["CalibrationRun", "calibrate_membrane", "calibrated_problem_text", "write_calibration_outputs"]
+__all__ = [
+    "CalibrationRun",
+    "calibrate_membrane",
+    "calibrated_problem",
+    "calibrated_problem_text",
+    "write_calibration_outputs",
+]
 
 
 @dataclass(eq=False)
@@ -129,8 +135,21 @@ def calibrate_membrane(
     return CalibrationRun(problem, source, meas, cal, report, time.perf_counter() - t0)
 
 
+def calibrated_problem(run: CalibrationRun):
+    """The problem with the calibration's posterior as its ``[identification]`` prior: in memory, the
+    values :func:`calibrated_problem_text` writes (``identify`` on either gives the same answer)."""
+    ident = _calibrated_fields(run)
+    ident["prestrain"], ident["prestrain_std"] = tuple(ident["prestrain"]), tuple(ident["prestrain_std"])
+    return run.problem.with_identification(**ident)
+
+
 def calibrated_problem_text(run: CalibrationRun) -> str:
     """The problem file's text with the calibration's posterior as ``[identification]`` prior."""
+    header = f"calibrated by wingopt calibrate from {run.source} (problem {run.problem.source})"
+    return table_text(read_problem_table(run.problem.source), {"identification": _calibrated_fields(run)}, header)
+
+
+def _calibrated_fields(run: CalibrationRun) -> dict:
     c = run.calibration
     r = float(c.correlation[0, 1])
     ident = {
@@ -142,8 +161,7 @@ def calibrated_problem_text(run: CalibrationRun) -> str:
         "calibration": f"{Path(run.source).name}: {run.measurements.count} samples, chi-square per datum "
         f"{c.chi2_per_datum:.2f}{'' if c.adequate else ' (inadequate)'}",
     }
-    header = f"calibrated by wingopt calibrate from {run.source} (problem {run.problem.source})"
-    return table_text(read_problem_table(run.problem.source), {"identification": ident}, header)
+    return ident
 
 
 def calibration_inputs(problem, data) -> list[tuple[str, str]]:

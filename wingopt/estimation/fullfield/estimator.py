@@ -202,6 +202,8 @@ def _info(s, mode, data, fits, w, best: SteadyFit, mean, std, pp: PrestrainPrior
             for f, wi in zip(fits, w)
         ],  # fmt: skip
         "chosen": best.label,
+        "steady_lift_N": mean,  # the reported lift (IdentificationResult.reported_lift): the frames' steady part
+        "steady_lift_std_N": std,
         "steady": {
             "lift_N": mean,
             "lift_std_N": std,
