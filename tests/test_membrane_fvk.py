@@ -192,7 +192,7 @@ def test_record_generator(problem):
         simulate_case(problem, "L1", 0.0, truth="exact")
     with pytest.raises(InputError, match="load"):
         simulate_case(problem, "L9", 0.0)
-    with pytest.raises(InputError, match="eps0_x"):
+    with pytest.raises(InputError, match=r"truth-prestrain = \(-0.01, 0.05\): expected two prestrains"):
         simulate_case(problem, "L1", 0.0, prestrain=(-0.01, 0.05))
 
 
