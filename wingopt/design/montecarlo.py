@@ -146,7 +146,7 @@ def run_task(task: IdentifyTask, settings: MHESettings | None = None) -> dict:
     rng = np.random.default_rng(task.seed)
     sigma = task.noise * np.max(np.abs(clean), axis=0)
     noisy = clean + rng.standard_normal(clean.shape) * sigma
-    meas = Measurements(t=traj.t, values=noisy, sensor_names=tuple(s.name for s in specs), noise_std=None)
+    meas = Measurements(traj.t, noisy, tuple(s.name for s in specs), None, "monte-carlo record", simulated=True)
     model = _estimator_model(prob, specs, task.nodes)
     sign = -1.0 if task.load == "consistency" else 1.0
     # The linear MHE as the registry runs it; no FvK cross-check (model_form): only the estimate counts.

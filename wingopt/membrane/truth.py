@@ -225,7 +225,7 @@ def simulate_truth(forward, load: str | PressureLoad, protocol: RecordProtocol =
     final = float(factor[-1])
     scaled = PressureLoad(load.name, lambda x, y: final * load(x, y), load.description, load.breaks_x, load.breaks_y)
     traj = Trajectory(rec.t, rec.z, rec.zdot, held, clean)
-    meas = Measurements(rec.t, noisy, problem.sensor_names, None, "")
+    meas = Measurements(rec.t, noisy, problem.sensor_names, None, "", simulated=True)
     out = TruthRecord(
         scaled, model, traj, meas, protocol.noise, protocol.seed, factor, parameters, forward.physics, sigma, load
     )
