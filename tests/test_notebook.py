@@ -195,3 +195,38 @@ def test_the_cross_checks_warnings_say_they_are_its(monkeypatch, tmp_path, capsy
     assert len(cross) == 2 and "model-form uncertainty" in cross[0] and cross[1] == "[fvk cross-check] stub"
     for w in warnings:
         assert (cap.out + cap.err).count(w) == 1, w
+
+
+# -- noise: one convention, the unit in the name --------------------------------------------------
+
+
+def test_a_bare_noise_is_refused_naming_the_spellings_with_a_unit():
+    from wingopt.errors import InputError
+    from wingopt.membrane import RecordProtocol
+    from wingopt.workflows.design import design_settings
+    from wingopt.workflows.protocols import simulate_case
+
+    problem = wo.load_problem("membrane")
+    # identify(noise=1) simulated 100 % noise once: now no bare noise anywhere in the API.
+    with pytest.raises(InputError, match="noise = 1: ambiguous unit; give noise_percent .* or noise_std"):
+        wo.identify(problem, load="L1", noise=1)
+    with pytest.raises(InputError, match=r"noise = 0.01: give noise_fraction \(0.01 = 1 %"):
+        simulate_case(problem, "L1", noise=0.01)
+    with pytest.raises(InputError, match="simulate_case: give noise_fraction"):
+        simulate_case(problem, "L1")
+    with pytest.raises(InputError, match="noise = 0.01: give noise_fraction"):
+        RecordProtocol(noise=0.01)
+    with pytest.raises(InputError, match="noise = 0.05: give noise_fraction"):
+        design_settings(noise=0.05)
+    assert RecordProtocol(noise_fraction=0.02).noise_fraction == 0.02
+    assert design_settings(noise_fraction=0.05).information.noise_fraction == 0.05
+
+
+def test_noise_percent_and_noise_fraction_simulate_the_same_record():
+    from wingopt.workflows.protocols import simulate_case
+
+    problem = wo.load_problem("membrane").with_mesh((13, 7))
+    run = wo.identify(problem, load="L1", noise_percent=2, seed=3, truth_nodes=None, t_end=0.05, method="mhe")
+    case = simulate_case(problem, "L1", noise_fraction=0.02, seed=3, truth_nodes=None, t_end=0.05)
+    assert run.summary()["noise_percent"] == 2 and case.noise_fraction == 0.02
+    np.testing.assert_array_equal(run.measurements.values, case.measurements.values)

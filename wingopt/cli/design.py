@@ -94,7 +94,7 @@ def run(args) -> int:
         length_scale=args.length_scale,
         nominal_count=args.nominal,
         aggregate=args.aggregate,
-        noise=args.noise / 100.0,
+        noise_fraction=args.noise / 100.0,
         t_end=args.t_end,
         allow_overlap=args.allow_overlap,
     )

@@ -95,7 +95,7 @@ class IdentifyTask:
     problem: MembraneProblem
     rects: tuple[tuple[float, float, float, float], ...]
     load: str
-    noise: float = 0.01
+    noise_fraction: float = 0.01
     seed: int = 0
     truth_nodes: tuple[int, int] = (49, 25)
     nodes: tuple[int, int] | None = None
@@ -144,7 +144,7 @@ def run_task(task: IdentifyTask, settings: MHESettings | None = None) -> dict:
     sensors = StretchSensors.assemble(tmodel.space, specs)
     clean = sensors.outputs(traj.z)
     rng = np.random.default_rng(task.seed)
-    sigma = task.noise * np.max(np.abs(clean), axis=0)
+    sigma = task.noise_fraction * np.max(np.abs(clean), axis=0)
     noisy = clean + rng.standard_normal(clean.shape) * sigma
     meas = Measurements(traj.t, noisy, tuple(s.name for s in specs), None, "monte-carlo record", simulated=True)
     model = _estimator_model(prob, specs, task.nodes)
@@ -160,7 +160,7 @@ def run_task(task: IdentifyTask, settings: MHESettings | None = None) -> dict:
         "tag": task.tag,
         "load": task.load,
         "seed": task.seed,
-        "noise": task.noise,
+        "noise_fraction": task.noise_fraction,
         "load_error": float(np.sqrt(err2 / norm)),
         "lift_error": float(abs(res.reported_lift[0] - lift) / absl),
         "lift": res.reported_lift[0],

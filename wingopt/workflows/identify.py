@@ -222,8 +222,8 @@ def identify(
     """
     if noise is not None:
         raise InputError(
-            f"noise = {noise!r}: the noise is given in percent as noise_percent (noise_percent=1 is 1 %, "
-            f"as wingopt identify --noise 1)"
+            f"noise = {noise!r}: ambiguous unit; give noise_percent (simulated noise, 1 = 1 % of each sensor's "
+            "peak, as wingopt identify --noise 1) or noise_std (the sensors' noise std, sensor units)"
         )
     if isinstance(problem, (str, Path)):
         problem = load_problem(problem)
