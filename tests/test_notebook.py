@@ -154,6 +154,23 @@ def test_simulated_records_get_no_unit_hint_but_the_same_values_as_data_do():
     assert len(hints) == 1 and hints[0].startswith("[data check] "), data.warnings
 
 
+def test_an_engine_warning_is_in_the_result_and_logged_once(caplog):
+    """The MHE's undetermined sign used to be logged by the engine only (not in summary.json); it is
+    now the estimator's warning, logged once by the workflow with the estimator's name."""
+    import dataclasses
+    import logging
+
+    p = wo.load_problem("membrane").with_mesh((13, 7))
+    p = dataclasses.replace(p, identification=dataclasses.replace(p.identification, initial_deflection=0.0))
+    with caplog.at_level(logging.WARNING, logger="wingopt"):
+        run = wo.identify(p, load="L2", truth_nodes=None, t_end=0.3, method="mhe")
+    sign = [w for w in run.warnings if "sign of the load is not determined" in w]
+    assert len(sign) == 1 and sign[0].startswith("[linear mhe] "), run.warnings
+    logged = [r.getMessage() for r in caplog.records if "sign of the load" in r.getMessage()]
+    assert logged == sign
+    assert run.summary()["warnings"] == run.warnings
+
+
 def test_cli_identify_prints_each_warning_once_with_its_source(tmp_path):
     out = tmp_path / "run"
     cmd = [sys.executable, "-m", "wingopt", "identify", "membrane", "--data", str(RECORD), "--model", "linear"]
