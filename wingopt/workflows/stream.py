@@ -184,7 +184,8 @@ def follow(
         if lines.restarts:
             summary["restarts"] = list(lines.restarts)
         scale = sanity.scale_warnings(peak[0], peak[1], problem.material.prestrain)
-        summary["warnings"] = list(summary.get("warnings", [])) + scale
+        own = sanity.sourced(method, summary.get("warnings", []))  # each names its source, as identify's
+        summary["warnings"] = own + sanity.sourced("data check", scale)
         summary["method"] = method
         summary["membrane"] = spec.model
         summary["options"] = options.as_dict()
