@@ -128,6 +128,17 @@ def test_morph_status_and_repr():
     assert short.status is RunStatus.NOT_CONVERGED and short.summary()["status"] == "not_converged"
 
 
+def test_gains_status_and_repr():
+    from wingopt.workflows.gains import plate_gains
+
+    g = plate_gains(wo.load_problem("plate"), [(7, 31)])
+    rec = g.summary["meshes"][0]
+    assert rec["converged"] is True and rec["status"] == "converged"
+    assert g.status is RunStatus.CONVERGED and g.summary["status"] == "converged"
+    assert repr(g) == "GainsResult(problem='plate', r=1e-10, meshes=[7x31 (279 dofs)], status='converged')"
+    assert json.loads(json.dumps(g.summary["status"])) == "converged"
+
+
 def test_calibration_status():
     pars = {"prestrain_x": 0.05, "prestrain_y": 0.04, "damping": 1.0}
     ok = Calibration(pars, pars, np.eye(3), 1.0, True, info={"converged": True})
