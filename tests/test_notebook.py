@@ -258,3 +258,12 @@ def test_noise_percent_and_noise_fraction_simulate_the_same_record():
     case = simulate_case(problem, "L1", noise_fraction=0.02, seed=3, truth_nodes=None, t_end=0.05)
     assert run.summary()["noise_percent"] == 2 and case.noise_fraction == 0.02
     np.testing.assert_array_equal(run.measurements.values, case.measurements.values)
+
+
+def test_the_cli_spells_the_unit_too(tmp_path):
+    from wingopt.cli import main
+
+    out = tmp_path / "run"
+    args = ["identify", "membrane", "--load", "L1", "--noise-percent", "2", "--seed", "3", "--same-mesh"]
+    assert main([*args, "--mesh", "13x7", "--method", "mhe", "--t-end", "0.05", "--no-plots", "--out", str(out)]) == 0
+    assert json.loads((out / "summary.json").read_text())["noise_percent"] == 2
