@@ -113,6 +113,9 @@ def test_a_flagged_record_is_a_misfit_in_summary_json(tmp_path):
     )
     assert run.result.info["model_adequate"] is False
     assert run.status is RunStatus.MISFIT and run.summary()["status"] == "misfit"
+    r = repr(run)
+    assert len(r) <= REPR_MAX and "record='synthetic_tunnel_300Hz.csv'" in r and "status='misfit'" in r, r
+    assert "warnings=2" in r
 
 
 def test_morph_status_and_repr():

@@ -138,7 +138,7 @@ class MembraneProblem:
         return (
             f"MembraneProblem(name={self.name!r}, {self.width:g} x {self.height:g} m, mesh {nx}x{ny}, "
             f"prestrain {self.material.prestrain:g}, {len(self.sensors)} sensors [{names}]"
-            f"{', dic' if self.dic is not None else ''}, source={self.source!r})"
+            f"{', dic' if self.dic is not None else ''}, source={self.source.rsplit('/', 1)[-1]!r})"
         )
 
 

@@ -220,7 +220,7 @@ class PlateProblem:
         return (
             f"PlateProblem(name={self.name!r}, {self.width:g} x {self.length:g} m, mesh {nx}x{ny}, "
             f"{len(self.battens)} battens, {len(self.patches)} patches, voltage {act.vmin:g}..{act.vmax:g} V, "
-            f"source={self.source!r})"
+            f"source={self.source.rsplit('/', 1)[-1]!r})"
         )
 
 

@@ -85,7 +85,7 @@ class IdentifyRun:
         # The dataclass repr prints the problem, the model and every array (34 000 characters).
         lift, std = self.result.reported_lift
         band = "" if std is None else f" ± {std:.3g}"
-        src = self.protocol.get("load_case") or self.measurements.source or "data"
+        src = self.protocol.get("load_case") or self.measurements.source.rsplit("/", 1)[-1] or "data"
         nx, ny = self.problem.nodes
         return (
             f"IdentifyRun(problem={self.problem.name!r}, mesh {nx}x{ny}, record={src!r}, method={self.method!r}, "
