@@ -163,13 +163,11 @@ class TruthRecord:
     def with_noise(self, noise_fraction: float, seed: int | None, tell: bool = False) -> TruthRecord:
         """The same clean record with other noise, ``noise_fraction`` of each sensor's peak output
         (0.01 = 1 %); ``tell``: the measurements carry its std."""
-        noise = noise_fraction
-        noisy, sigma = add_noise(self.trajectory.outputs, noise, seed)
+        noisy, sigma = add_noise(self.trajectory.outputs, noise_fraction, seed)
         noisy[np.isnan(self.measurements.values)] = np.nan
-        meas = dataclasses.replace(
-            self.measurements, values=noisy, noise_std=sigma if tell else None, source=_source(self, noise, seed)
-        )
-        return dataclasses.replace(self, measurements=meas, noise_fraction=noise, seed=seed, noise_std=sigma)
+        src = _source(self, noise_fraction, seed)
+        meas = dataclasses.replace(self.measurements, values=noisy, noise_std=sigma if tell else None, source=src)
+        return dataclasses.replace(self, measurements=meas, noise_fraction=noise_fraction, seed=seed, noise_std=sigma)
 
     def told(self) -> TruthRecord:
         """The record whose measurements carry the simulated noise std (estimators then need not estimate it)."""
@@ -237,19 +235,8 @@ def simulate_truth(forward, load: str | PressureLoad, protocol: RecordProtocol =
     scaled = PressureLoad(load.name, lambda x, y: final * load(x, y), load.description, load.breaks_x, load.breaks_y)
     traj = Trajectory(rec.t, rec.z, rec.zdot, held, clean)
     meas = Measurements(rec.t, noisy, problem.sensor_names, None, "", simulated=True)
-    out = TruthRecord(
-        scaled,
-        model,
-        traj,
-        meas,
-        protocol.noise_fraction,
-        protocol.seed,
-        factor,
-        parameters,
-        forward.physics,
-        sigma,
-        load,
-    )
+    noise = protocol.noise_fraction
+    out = TruthRecord(scaled, model, traj, meas, noise, protocol.seed, factor, parameters, forward.physics, sigma, load)
     return dataclasses.replace(
         out, measurements=dataclasses.replace(meas, source=_source(out, protocol.noise_fraction, protocol.seed))
     )
