@@ -213,7 +213,8 @@ def identify(
         Shorthands for the same fields of ``options``: the sign prior (Pa), the sensor noise std
         (sensor units; default: estimated from the data) and the lambda choice.
     noise : float, optional
-        No longer accepted (it was a fraction): give ``noise_percent``.
+        No longer accepted (it was a fraction, the command line's a percentage): an ``InputError`` names
+        ``noise_percent`` (simulated noise) and ``noise_std`` (the sensors' noise).
 
     Returns
     -------
