@@ -125,10 +125,13 @@ def test_morph_status_and_repr():
     assert run.status is RunStatus.CONVERGED and run.summary()["status"] == "converged"
     r = repr(run)
     assert len(r) <= REPR_MAX and f"shape_error={run.closed_loop.final_shape_error:.4g}" in r, r
+    r = repr(run.closed_loop)
+    assert len(r) <= REPR_MAX and "t_end=0.5 s, steps=50" in r and "status='converged'" in r, r
     # 0.5 s is too short for the LQR: its shape error still falls 0.44 -> 0.37 over the last 0.1 s.
     short = wo.morph(plate, "twist", "lqr", nodes=(7, 31), t_end=0.5)
     assert short.closed_loop.settling_time() > 0.4
     assert short.status is RunStatus.NOT_CONVERGED and short.summary()["status"] == "not_converged"
+    assert short.closed_loop.status is RunStatus.NOT_CONVERGED
 
 
 def test_gains_status_and_repr():

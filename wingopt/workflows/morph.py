@@ -120,14 +120,7 @@ class MorphResult:
         settling band in the last fifth of the run (``t_end`` too short for this controller);
         else ``converged``.
         """
-        cl = self.closed_loop
-        if not (np.all(np.isfinite(cl.shape_error)) and np.all(np.isfinite(cl.u))):
-            return RunStatus.FAILED
-        settled = cl.settling_time() <= 0.8 * cl.t[-1]
-        return worst(
-            from_solver_statuses(self.extras.get("qp_statuses")),
-            RunStatus.CONVERGED if settled else RunStatus.NOT_CONVERGED,
-        )
+        return worst(self.closed_loop.status, from_solver_statuses(self.extras.get("qp_statuses")))
 
     def __repr__(self) -> str:
         # The dataclass repr prints the plate model and every history (100 000+ characters).
