@@ -262,6 +262,8 @@ def _print(summary: dict, args) -> None:
     line = f"{summary['method']}: lift {summary['lift_N']:.5g} N"
     if summary.get("lift_std_N") is not None:
         line += f" ± {summary['lift_std_N']:.2g}"
+    if summary.get("status"):
+        line += f" [{summary['status']}]"  # whether to trust it, before the numbers that say how well
     if "load_error" in summary:
         line += (
             f", load error {summary['load_error']:.4f}, deflection error {summary['deflection_error']:.2e}"
