@@ -23,6 +23,7 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.measurements.lines import LineSource
+from wingopt.status import RunStatus
 
 __all__ = ["COLUMNS", "LatencyStats", "follow"]
 
@@ -180,7 +181,7 @@ def follow(
         except Exception as exc:  # noqa: BLE001 - the estimator's state after a failure may not summarise
             summary = {"problem": problem.name, "source": name, "stopped": lines.reason, "samples": live.rows,
                        "rows_written": live.rows, "lift_N": None, "lift_std_N": None,
-                       "summary_error": f"{type(exc).__name__}: {exc}", "warnings": []}  # fmt: skip
+                       "summary_error": f"{type(exc).__name__}: {exc}", "warnings": [], "status": "failed"}  # fmt: skip
         if lines.restarts:
             summary["restarts"] = list(lines.restarts)
         scale = sanity.scale_warnings(peak[0], peak[1], problem.material.prestrain)
@@ -247,6 +248,16 @@ def _as_stream_error(exc: BaseException, method: str, rows: int, out) -> BaseExc
     )
 
 
+def _status(finite: bool, info: dict, last) -> RunStatus:
+    """The stream's :class:`~wingopt.status.RunStatus`: ``failed`` without a finite estimate,
+    ``not_converged`` before the start-up finished, ``misfit`` when the last window is not explained."""
+    if not finite:
+        return RunStatus.FAILED
+    if info.get("phase") not in ("tracking", "steady"):
+        return RunStatus.NOT_CONVERGED
+    return RunStatus.CONVERGED if last.adequate else RunStatus.MISFIT
+
+
 def _summary(est, parser, reason, cpu, wall, bad, first_bad, source, problem, rows_written) -> dict:
     last = est.last
     finite = last is not None and np.isfinite(last.lift)
@@ -287,6 +298,7 @@ def _summary(est, parser, reason, cpu, wall, bad, first_bad, source, problem, ro
             "ignored_columns": parser.ignored_columns,
             "dt_s": parser.dt,
         },
+        "status": str(_status(finite, info, last)),
         "lift_N": float(last.lift) if finite else None,
         "lift_std_N": float(last.lift_std) if finite else None,
         "chi2_per_datum": float(last.chi2_per_datum) if finite else None,
