@@ -145,6 +145,17 @@ def test_gains_status_and_repr():
     assert json.loads(json.dumps(g.summary["status"])) == "converged"
 
 
+def test_design_status_and_repr():
+    from wingopt.workflows.design import design_layout, design_settings
+
+    cands = "only-rects;rect=0.02:0.05:0.01:0.025;rect=0.08:0.11:0.045:0.06;rect=0.1:0.13:0.01:0.025"
+    res = design_layout("membrane", 2, cands, design_settings(criterion="a", t_end=0.05, nominal_count=1))
+    assert res.relaxation["status"] == "optimal" and res.status is RunStatus.CONVERGED
+    r = repr(res)
+    assert len(r) <= REPR_MAX and "count=2" in r and "candidates=7" in r and "status='converged'" in r, r
+    assert res.summary()["status"] == "converged"
+
+
 def test_calibration_status():
     pars = {"prestrain_x": 0.05, "prestrain_y": 0.04, "damping": 1.0}
     ok = Calibration(pars, pars, np.eye(3), 1.0, True, info={"converged": True})
