@@ -22,7 +22,8 @@ class RunStatus(enum.StrEnum):
     ``converged``: the solvers converged and the model explains the data (where that is checked).
     ``misfit``: converged, but the model does not explain the data (the estimate and its band are
     not trustworthy, see the warnings). ``not_converged``: an answer came back, but a solver stopped
-    at its iteration cap or reported an inaccurate solution. ``failed``: no usable number (NaN).
+    at its iteration cap or reported an inaccurate solution, or a simulated run had not settled by
+    its end. ``failed``: no usable number (NaN).
     """
 
     CONVERGED = "converged"
@@ -58,9 +59,18 @@ def from_solver_statuses(raw) -> RunStatus:
 def from_info(info: dict, *numbers: float) -> RunStatus:
     """The status of a result from its ``info`` diagnostics and its headline ``numbers``.
 
-    ``failed`` when a number is NaN or infinite; else the worst of the solver statuses
-    (``info["statuses"]``), the converged flag (``info["converged"]``) and the adequacy
-    (``info["model_adequate"]``), each counted only where the result records it.
+    Parameters
+    ----------
+    info : dict
+        A result's diagnostics: ``statuses`` (solver statuses), ``converged`` (bool) and
+        ``model_adequate`` (bool) count where present.
+    *numbers : float
+        The result's headline numbers (a lift, the parameters): one NaN, inf or ``None`` fails it.
+
+    Returns
+    -------
+    RunStatus
+        ``failed`` when a number is not finite; else the worst of what ``info`` records.
     """
     if any(n is None or not math.isfinite(float(n)) for n in numbers):
         return RunStatus.FAILED
