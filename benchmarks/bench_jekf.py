@@ -106,7 +106,7 @@ def main(argv=None) -> int:
     records, seed_lambdas = [], {}
     t_start = time.perf_counter()
     for load in loads:
-        clean = simulate_case(problem, load, noise=0.0, seed=None, truth_nodes=truth_nodes)
+        clean = simulate_case(problem, load, noise_fraction=0.0, seed=None, truth_nodes=truth_nodes)
         t0 = time.perf_counter()
         search = cached_seed_lambda(model, clean, JEKFSettings.seed(modes=args.modes), maxfev=args.seed_maxfev)
         seed_lambdas[load] = {
@@ -162,7 +162,7 @@ def main(argv=None) -> int:
 def timing(problem, samples: int = 300) -> None:
     """Seconds per sample of the filter: exact modal form, reduced modal forms, dense reference."""
     model = MembraneModel.from_problem(problem)
-    case = simulate_case(problem, "L1", noise=0.01, seed=0, truth_nodes=None, t_end=samples * 1e-3)
+    case = simulate_case(problem, "L1", noise_fraction=0.01, seed=0, truth_nodes=None, t_end=samples * 1e-3)
     meas = case.measurements
     R = tuple(meas.noise_std**2)
     print(f"{problem.nodes[0]}x{problem.nodes[1]}: joint state {3 * model.n}; load average {os.getloadavg()[0]:.1f}")

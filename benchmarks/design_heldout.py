@@ -69,7 +69,7 @@ def main() -> None:
         (out / "summary.json").write_text(json.dumps(res, indent=1, default=float))
 
     c0 = time.process_time()
-    info = InformationSettings(t_end=args.t_end, noise=0.01)
+    info = InformationSettings(t_end=args.t_end, noise_fraction=0.01)
     design = design_sensors(
         problem, 4, f"step={args.step}", DesignSettings(information=info, swap_passes=args.swap_passes)
     )

@@ -126,7 +126,9 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     problem = load_problem("membrane")
     c0, t0 = time.process_time(), time.perf_counter()
-    cands, default_idx, crit = criteria(problem, "step=2", InformationSettings(t_end=args.t_end, noise=args.noise))
+    cands, default_idx, crit = criteria(
+        problem, "step=2", InformationSettings(t_end=args.t_end, noise_fraction=args.noise)
+    )
     t_crit = time.process_time() - c0
     pool = np.flatnonzero(cands.size_index >= 0)
     lays = random_layouts(cands.rects, 4, args.layouts, np.random.default_rng(args.layout_seed), pool)

@@ -161,7 +161,7 @@ def main() -> None:
         out_path.write_text(json.dumps(results, indent=1, default=float))
 
     pool = mp.get_context("fork").Pool(args.workers) if args.workers > 1 else None
-    info = InformationSettings(t_end=args.t_end, noise=args.noise)
+    info = InformationSettings(t_end=args.t_end, noise_fraction=args.noise)
     t0 = time.perf_counter()
     if parts == ["curve"]:
         run_curve(problem, args, info, np.random.default_rng(2027), pool, results, save)

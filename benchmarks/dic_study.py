@@ -47,7 +47,9 @@ LOADS = ("tunnel-LE", "tunnel-bump")
 def calibrated(problem, fwd, seed: int, folder: Path):
     """The calibration record of ``fwd``'s membrane, calibrated; the problem file it writes, loaded."""
     W, L = problem.width, problem.height
-    proto = wm.RecordProtocol(t_end=0.5, dt=1 / 300, start="shape", initial_shape=push(W, L), noise=0.01, seed=seed)
+    proto = wm.RecordProtocol(
+        t_end=0.5, dt=1 / 300, start="shape", initial_shape=push(W, L), noise_fraction=0.01, seed=seed
+    )
     rec = wm.simulate_truth(fwd, wm.PressureLoad("no flow", lambda x, y: 0.0 * x), proto)
     run = calibrate_membrane(problem, rec.measurements)
     path = folder / f"calibrated-{seed}.toml"

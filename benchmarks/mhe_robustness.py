@@ -90,7 +90,7 @@ def run_case(problem, truth, est, load, scenario, seed, noise, settings, profile
     lift0 = integrate(truth.space, P, order=8)
     dt = 1.0 / rate
     factor = np.vectorize(lambda t: profile_fn(prof, float(t)), otypes=[float])
-    protocol = RecordProtocol(t_end=T_END, dt=dt, start=start, noise=noise, seed=seed, load_factor=factor)
+    protocol = RecordProtocol(t_end=T_END, dt=dt, start=start, noise_fraction=noise, seed=seed, load_factor=factor)
     rec = simulate_truth(forward_model(truth, "linear"), PressureLoad(load, P), protocol)
     traj, meas = rec.trajectory, rec.measurements  # the estimator is not told the noise level
     if scenario.endswith("-rw"):

@@ -80,7 +80,7 @@ def main(seed: int = 2012) -> list[Path]:
         fwd,
         load,
         RecordProtocol(
-            t_end=DURATION_S, dt=1 / RATE_HZ, start="static", noise=0.02, seed=seed, drop=0.01,
+            t_end=DURATION_S, dt=1 / RATE_HZ, start="static", noise_fraction=0.02, seed=seed, drop=0.01,
             load_factor=Buffeting(0.03, 30.0, 2, seed, DURATION_S + 0.1).factor,
         ),
     )  # fmt: skip
@@ -103,7 +103,9 @@ def main(seed: int = 2012) -> list[Path]:
     cal = simulate_truth(
         fwd,
         PressureLoad("no flow", lambda x, y: 0.0 * x),
-        RecordProtocol(t_end=0.5, dt=1 / RATE_HZ, start="shape", initial_shape=push(W, L), noise=0.01, seed=seed + 1),
+        RecordProtocol(
+            t_end=0.5, dt=1 / RATE_HZ, start="shape", initial_shape=push(W, L), noise_fraction=0.01, seed=seed + 1
+        ),
     )
     header = [
         "SYNTHETIC calibration record made by examples/make_tunnel_standin.py (not measured data)",

@@ -24,6 +24,7 @@ ENTRY_POINTS = [
     "wingopt.membrane.forward:forward_model",
     "wingopt.estimation.fullfield:fullfield_identify",
     "wingopt.membrane.virtual_sensors:virtual_sensors",
+    "wingopt.status:from_info",
 ]
 
 

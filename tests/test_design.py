@@ -79,7 +79,7 @@ def test_information_matches_finite_differences(small):
     J = sens.jacobian(chat, q)  # (2, T+1, d)
     err = np.abs(J.transpose(1, 0, 2) - J_fd).max() / np.abs(J_fd).max()
     assert err < 1e-6
-    info = sens.information(chat, u, q0, noise=0.01)
+    info = sens.information(chat, u, q0, noise_fraction=0.01)
     sigma = 0.01 * np.abs(base).max(axis=0)
     for i in range(2):
         Jn = J_fd[:, i] / sigma[i]

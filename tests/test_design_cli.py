@@ -24,6 +24,7 @@ def test_design_cli_round_trip(tmp_path, criterion):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["count"] == 2 and summary["candidates"] == 7  # 3 rects + the problem's 4 sensors
     assert isinstance(summary["warnings"], list)
+    assert summary["status"] == ("converged" if summary["relaxation"]["status"] == "optimal" else "not_converged")
     rel = summary["relaxation"]
     assert rel["bound"] <= rel["chosen_reduced"] + 1e-6 and rel["gap"] >= -1e-6
     assert (out / "layout.png").stat().st_size > 1000

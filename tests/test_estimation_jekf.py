@@ -38,7 +38,7 @@ def coarse(membrane_problem):
 @pytest.fixture(scope="module")
 def l1_case(membrane_problem):
     """L1, 1 % noise, 0.5 s, truth on 25x13."""
-    return simulate_case(membrane_problem, "L1", noise=0.01, seed=3, truth_nodes=TRUTH, t_end=0.5)
+    return simulate_case(membrane_problem, "L1", noise_fraction=0.01, seed=3, truth_nodes=TRUTH, t_end=0.5)
 
 
 def _short(meas: Measurements, count: int) -> Measurements:
@@ -96,7 +96,7 @@ def test_joseph_update_keeps_the_covariance_symmetric_and_psd(coarse, l1_case):
 
 
 def test_tuned_jekf_on_noise_free_data_beats_the_prior(coarse, membrane_problem):
-    case = simulate_case(membrane_problem, "L1", noise=0.0, seed=None, truth_nodes=TRUTH, t_end=0.5)
+    case = simulate_case(membrane_problem, "L1", noise_fraction=0.0, seed=None, truth_nodes=TRUTH, t_end=0.5)
     res = jekf_identify(coarse, case.measurements, JEKFSettings.tuned(1e-6, measurement_variance=1e-10))
     prior_error = case.load_error(coarse.field(np.zeros(coarse.n)))  # zero initial load: 1.0
     error = case.load_error(coarse.field(res.final_load))
@@ -158,8 +158,8 @@ def test_the_estimate_follows_the_sign_of_the_prior(coarse, l1_case):
 
 
 def test_results_are_reproducible(coarse, membrane_problem):
-    a = simulate_case(membrane_problem, "L2", noise=0.05, seed=11, truth_nodes=TRUTH, t_end=0.15)
-    b = simulate_case(membrane_problem, "L2", noise=0.05, seed=11, truth_nodes=TRUTH, t_end=0.15)
+    a = simulate_case(membrane_problem, "L2", noise_fraction=0.05, seed=11, truth_nodes=TRUTH, t_end=0.15)
+    b = simulate_case(membrane_problem, "L2", noise_fraction=0.05, seed=11, truth_nodes=TRUTH, t_end=0.15)
     ra = jekf_identify(coarse, a.measurements, JEKFSettings.tuned(1e-7))
     rb = jekf_identify(coarse, b.measurements, JEKFSettings.tuned(1e-7))
     np.testing.assert_array_equal(ra.load, rb.load)

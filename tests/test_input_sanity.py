@@ -115,7 +115,7 @@ def test_percent_stretch_warns_on_the_cli_and_in_the_summary(tmp_path, capsys):
         == 0
     )
     err = capsys.readouterr().err
-    assert "wingopt identify: warning: sensor S1 reads up to 0.432" in err and "percent" in err
+    assert "wingopt identify: warning: [data check] sensor S1 reads up to 0.432" in err and "percent" in err
     summary = json.loads((out / "summary.json").read_text())
     units = [w for w in summary["warnings"] if "percent" in w]
     assert len(units) == 1 and "pre-strain" in units[0]

@@ -298,6 +298,7 @@ def test_follow_with_writer_process_until_end_marker(small_cli, tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["stopped"] == "end marker" and summary["samples"] == t.size == summary["rows_written"]
     assert summary["estimator"]["phase"] == "tracking"
+    assert summary["status"] == ("converged" if summary["adequate"] else "misfit")
     assert float(rows[-1]["lift_N"]) == pytest.approx(summary["lift_N"], rel=1e-9)
     assert summary["warnings"] == [] or all(isinstance(w, str) for w in summary["warnings"])
     printed = stdout.strip().splitlines()
@@ -341,6 +342,7 @@ def test_stdin_stream_and_idle_timeout(small_cli, tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["stopped"] == "end of input" and summary["samples"] == 150
     assert any("provisional" in w for w in summary["warnings"])  # ended before the start-up (at 200 rows)
+    assert summary["status"] == "not_converged"
     # --follow on a file that stops growing: the idle timeout ends the run.
     live = tmp_path / "idle.csv"
     live.write_text("\n".join(lines[:51]) + "\n")

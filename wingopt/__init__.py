@@ -11,7 +11,7 @@ The main entry points are available at the top level (imported on first use)::
     plate = wo.load_problem("plate")
     run = wo.morph(plate, "twist", method="qp")          # -> MorphResult
     membrane = wo.load_problem("membrane")
-    est = wo.identify(membrane, load="L1", noise=0.01)    # -> IdentifyRun
+    est = wo.identify(membrane, load="L1", noise_percent=1)  # -> IdentifyRun
 """
 
 from __future__ import annotations
@@ -41,3 +41,11 @@ def __getattr__(name: str):
     if name in _LAZY:
         return getattr(importlib.import_module(_LAZY[name]), name)
     raise AttributeError(f"module 'wingopt' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    # The lazy names live in _LAZY, not in the module's namespace: without this, dir(wingopt) and
+    # tab completion (which calls dir) would list only the dunders and show no entry point.
+    # Subpackages already imported count too; the helpers of this file (importlib) do not.
+    loaded = {k for k, v in globals().items() if getattr(v, "__name__", "").startswith("wingopt.")}
+    return sorted({k for k in globals() if k.startswith("__")} | loaded | set(__all__))

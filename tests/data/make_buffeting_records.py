@@ -36,7 +36,7 @@ def make(name: str, ex: float, ey: float, seed: int) -> Path:
         t_end=DURATION_S,
         dt=1 / RATE_HZ,
         start="static",
-        noise=0.0,
+        noise_fraction=0.0,
         seed=None,
         load_factor=Buffeting(0.03, 30.0, 2, seed, DURATION_S + 0.1).factor,
     )

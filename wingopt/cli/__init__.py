@@ -127,7 +127,11 @@ class _Lines(logging.Formatter):
     def format(self, record: logging.LogRecord) -> str:
         level = record.levelname.lower()
         if record.levelno >= logging.WARNING:
-            return f"wingopt {self.command}: {level}: {one_line(record.getMessage())}"
+            msg = one_line(record.getMessage())
+            if record.levelno == logging.WARNING and not msg.startswith("["):
+                # A warning an engine logged itself names its module, as the workflow's name their check.
+                msg = f"[{record.name.removeprefix('wingopt.')}] {msg}"
+            return f"wingopt {self.command}: {level}: {msg}"
         return f"wingopt {self.command}: {record.name.removeprefix('wingopt.')}: {one_line(record.getMessage())}"
 
 

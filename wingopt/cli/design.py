@@ -50,7 +50,14 @@ def register(sub, common) -> None:
         "--nominal", type=int, help="nominal loads the design is robust over (default 12 for risk, 4 for a/lift/d)"
     )
     p.add_argument("--aggregate", choices=("mean", "max"), default="mean", help="over the nominal loads")
-    p.add_argument("--noise", type=float, default=1.0, help="noise in PERCENT of each sensor's peak (default 1)")
+    p.add_argument(
+        "--noise",
+        "--noise-percent",
+        dest="noise",
+        type=float,
+        default=1.0,
+        help="noise in PERCENT of each sensor's peak (default 1; Python: noise_fraction = this / 100)",
+    )
     p.add_argument("--t-end", type=float, default=1.0, help="record length, s (default 1)")
     p.add_argument(
         "--montecarlo",
@@ -94,7 +101,7 @@ def run(args) -> int:
         length_scale=args.length_scale,
         nominal_count=args.nominal,
         aggregate=args.aggregate,
-        noise=args.noise / 100.0,
+        noise_fraction=args.noise / 100.0,
         t_end=args.t_end,
         allow_overlap=args.allow_overlap,
     )

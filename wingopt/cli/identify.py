@@ -81,7 +81,13 @@ def register(sub, common) -> None:
     src.add_argument(
         "--dic", metavar="DIR|FILE.npz", help="DIC frames: the full-field estimator (another --method: virtual sensors)"
     )
-    p.add_argument("--noise", default="1", help="simulated noise in PERCENT of each sensor's peak (default 1)")
+    p.add_argument(
+        "--noise",
+        "--noise-percent",
+        dest="noise",
+        default="1",
+        help="simulated noise in PERCENT of each sensor's peak (default 1; Python: noise_percent)",
+    )
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     p.add_argument("--truth-mesh", default="49x25", help="mesh of the simulated truth (default 49x25)")
     p.add_argument("--same-mesh", action="store_true", help="seed protocol: simulate the truth on the estimator's mesh")
@@ -256,6 +262,8 @@ def _print(summary: dict, args) -> None:
     line = f"{summary['method']}: lift {summary['lift_N']:.5g} N"
     if summary.get("lift_std_N") is not None:
         line += f" ± {summary['lift_std_N']:.2g}"
+    if summary.get("status"):
+        line += f" [{summary['status']}]"  # whether to trust it, before the numbers that say how well
     if "load_error" in summary:
         line += (
             f", load error {summary['load_error']:.4f}, deflection error {summary['deflection_error']:.2e}"

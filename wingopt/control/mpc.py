@@ -180,6 +180,7 @@ class QPController:
         self._k = 0
         self.solve_times: list[float] = []
         self.iterations: list[int] = []
+        self.statuses: set[str] = set()  # each distinct SolveStatus of the run's solves (for its status)
         self.objectives: list[float] = []
         self.max_violation_V = 0.0
         if self.filter is not None:
@@ -197,6 +198,7 @@ class QPController:
         self._warm = _shift(sol.v, self.qp)
         self.solve_times.append(sol.seconds)
         self.iterations.append(sol.iterations)
+        self.statuses.add(sol.status.value)
         self.objectives.append(sol.objective)
         return sol
 
@@ -249,6 +251,7 @@ class QPController:
                 qp_step_median_over_period=float(np.median(t) / self.period),
                 qp_iterations_median=float(np.median(self.iterations)),
                 qp_max_bound_violation_V=self.max_violation_V,
+                qp_statuses=sorted(self.statuses),
             )
         return out
 

@@ -32,6 +32,7 @@ from wingopt.design.risk import BayesRisk
 from wingopt.design.selection import greedy, overlap_matrix, relax, round_weights, swap_improve
 from wingopt.errors import InputError
 from wingopt.membrane import MembraneModel
+from wingopt.status import RunStatus, from_solver_statuses
 
 __all__ = ["CRITERIA", "DesignSettings", "DesignResult", "design_sensors", "predicted_error_field"]
 
@@ -41,7 +42,6 @@ CRITERIA = ("risk", *LINEAR_CRITERIA)
 
 DEFAULT_LENGTH = 0.2
 """Default length scale of the load prior and of the nominal loads, as a fraction of the chord."""
-
 
 MAX_COUNT, MAX_NOMINAL = 1000, 1000
 """Most sensors one design may place (as many as a problem file may list), and nominal loads."""
@@ -131,9 +131,22 @@ class DesignResult:
         """The nominal pressures the design was linearised along (callables)."""
         return nominal_loads(self.problem, self.settings)
 
+    @property
+    def status(self) -> RunStatus:
+        """``converged``, or ``not_converged`` when the relaxation's solver came back inaccurate (its bound is
+        then approximate): :class:`~wingopt.status.RunStatus`."""
+        return from_solver_statuses([str(self.relaxation.get("status", "optimal")).lower()])
+
+    def __repr__(self) -> str:  # the candidates and the sensitivities would print 10 000s of characters
+        return (
+            f"DesignResult(count={self.count}, criterion={self.settings.criterion!r}, value={self.value:.4g}, "
+            f"candidates={len(self.candidates)}, status='{self.status}', warnings={len(self.warnings)})"
+        )
+
     def summary(self) -> dict:
         return {
             "problem": getattr(self.problem, "name", "membrane"),
+            "status": str(self.status),
             "count": self.count,
             "criterion": self.settings.criterion,
             "prior": self.settings.prior,
@@ -350,21 +363,9 @@ def design_sensors(
         )
     timings["total"] = time.perf_counter() - t0
     return DesignResult(
-        problem,
-        s,
-        cands,
-        np.asarray(best),
-        float(best_val),
-        pred,
-        relaxation,
-        baselines,
-        timings,
-        warnings,
-        risk,
-        sens,
-        linear,
-        risk_index,
-    )
+        problem, s, cands, np.asarray(best), float(best_val), pred, relaxation, baselines, timings, warnings,
+        risk, sens, linear, risk_index,
+    )  # fmt: skip
 
 
 def _reduced_value(linear: LinearCriterion, info_r, weight_r, const_r, layout) -> float:

@@ -50,7 +50,7 @@ class InformationSettings:
         Record length (s).
     window_s : float
         Length of the first segment (s), the estimator's first window (its lambda rule runs there).
-    noise : float
+    noise_fraction : float
         Noise as a fraction of each sensor's peak output (0.01 = 1 %).
     sub : int
         Lattice cells per element and direction (candidate edges lie on this lattice).
@@ -63,7 +63,7 @@ class InformationSettings:
     state_modes: int = 12
     t_end: float = 1.0
     window_s: float = 0.2
-    noise: float = 0.01
+    noise_fraction: float = 0.01
     sub: int = 2
     rest_stride: int = 1
 
@@ -79,8 +79,8 @@ class InformationSettings:
             bad("t_end", "a positive duration (s)")
         if not (np.isfinite(self.window_s) and 0 < self.window_s <= self.t_end):
             bad("window_s", "a duration in (0, t_end]")
-        if not (np.isfinite(self.noise) and self.noise > 0):
-            bad("noise", "a positive fraction of the peak output (0.01 = 1 %)")
+        if not (np.isfinite(self.noise_fraction) and self.noise_fraction > 0):
+            bad("noise_fraction", "a positive fraction of the peak output (0.01 = 1 %)")
         if not (isinstance(self.sub, int) and self.sub >= 1):
             bad("sub", "an integer >= 1")
         if not (isinstance(self.rest_stride, int) and self.rest_stride >= 1):
@@ -262,14 +262,14 @@ class ModalSensitivity:
         return np.einsum("ti,cij,tj->tc", q, chat, q)
 
     def information(
-        self, chat: np.ndarray, u: np.ndarray, q0: np.ndarray, chunk: int = 64, noise: float | None = None
+        self, chat: np.ndarray, u: np.ndarray, q0: np.ndarray, chunk: int = 64, noise_fraction: float | None = None
     ) -> SegmentInformation:
         """Information of every candidate along the response from ``q0`` under modal load ``u``.
 
-        The noise of each candidate is ``noise * max_k |s_i(q_k)|`` (default: the settings' ``noise``),
+        The noise of each candidate is ``noise_fraction * max_k |s_i(q_k)|`` (default: the settings'),
         the protocol's rule; the first ``window_samples`` samples form the window segment.
         """
-        p = self.settings.noise if noise is None else noise
+        p = self.settings.noise_fraction if noise_fraction is None else noise_fraction
         q = self.response(u, q0)
         nw = self.window_samples
         N, d = chat.shape[0], self.dim

@@ -95,7 +95,7 @@ class IdentifyTask:
     problem: MembraneProblem
     rects: tuple[tuple[float, float, float, float], ...]
     load: str
-    noise: float = 0.01
+    noise_fraction: float = 0.01
     seed: int = 0
     truth_nodes: tuple[int, int] = (49, 25)
     nodes: tuple[int, int] | None = None
@@ -144,9 +144,9 @@ def run_task(task: IdentifyTask, settings: MHESettings | None = None) -> dict:
     sensors = StretchSensors.assemble(tmodel.space, specs)
     clean = sensors.outputs(traj.z)
     rng = np.random.default_rng(task.seed)
-    sigma = task.noise * np.max(np.abs(clean), axis=0)
+    sigma = task.noise_fraction * np.max(np.abs(clean), axis=0)
     noisy = clean + rng.standard_normal(clean.shape) * sigma
-    meas = Measurements(t=traj.t, values=noisy, sensor_names=tuple(s.name for s in specs), noise_std=None)
+    meas = Measurements(traj.t, noisy, tuple(s.name for s in specs), None, "monte-carlo record", simulated=True)
     model = _estimator_model(prob, specs, task.nodes)
     sign = -1.0 if task.load == "consistency" else 1.0
     # The linear MHE as the registry runs it; no FvK cross-check (model_form): only the estimate counts.
@@ -160,7 +160,7 @@ def run_task(task: IdentifyTask, settings: MHESettings | None = None) -> dict:
         "tag": task.tag,
         "load": task.load,
         "seed": task.seed,
-        "noise": task.noise,
+        "noise_fraction": task.noise_fraction,
         "load_error": float(np.sqrt(err2 / norm)),
         "lift_error": float(abs(res.reported_lift[0] - lift) / absl),
         "lift": res.reported_lift[0],

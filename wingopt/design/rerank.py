@@ -45,14 +45,14 @@ class MonteCarloSettings:
         Noise seeds of each load.
     shortlist : int
         Layouts scored (the design's own included).
-    noise, t_end, truth_nodes
-        Noise fraction, record length (s) and mesh of the simulated truth.
+    noise_fraction, t_end, truth_nodes
+        Noise (0.01 = 1 % of each sensor's peak), record length (s) and mesh of the simulated truth.
     """
 
     loads: tuple[str, ...] = tuple(f"smooth:7:{k}:0.2" for k in range(4))
     seeds: tuple[int, ...] = (100, 101)
     shortlist: int = 8
-    noise: float = 0.01
+    noise_fraction: float = 0.01
     t_end: float = 0.3
     truth_nodes: tuple[int, int] = (49, 25)
 
@@ -137,7 +137,7 @@ def monte_carlo_scores(
             problem,
             tuple(tuple(float(v) for v in r) for r in rects),
             load,
-            settings.noise,
+            settings.noise_fraction,
             seed,
             settings.truth_nodes,
             None,

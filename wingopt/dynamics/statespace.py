@@ -78,6 +78,12 @@ class StateSpace:
     def poles(self) -> np.ndarray:
         return np.linalg.eigvals(self.A)
 
+    def __repr__(self) -> str:
+        # Sizes and sampling, as python-control's summary line; the matrices stay attributes
+        # (a plate's A is 1000s of numbers).
+        kind = "continuous" if self.dt is None else f"discrete, dt={self.dt:g} s"
+        return f"StateSpace(states={self.nstates}, inputs={self.ninputs}, outputs={self.noutputs}, {kind})"
+
     def to_control(self):
         """This system as a ``python-control`` ``StateSpace`` (needs the ``control`` package)."""
         try:

@@ -199,3 +199,16 @@ class IdentifyOptions:
 
     def replace(self, **kw) -> IdentifyOptions:
         return dataclasses.replace(self, **kw)
+
+    @classmethod
+    def merged(cls, options: IdentifyOptions | None, **arguments) -> IdentifyOptions:
+        """``options`` (default: none given) with the ``arguments`` that are not ``None`` folded in; an
+        option given both ways is refused (:class:`InputError`): which one counts would be a guess."""
+        opts = options if options is not None else cls()
+        if not isinstance(opts, cls):
+            raise InputError(f"options = {type(opts).__name__}: expected wingopt.estimation.options.IdentifyOptions")
+        extra = {k: v for k, v in arguments.items() if v is not None}
+        both = sorted(set(extra) & set(opts.given))
+        if both:
+            raise InputError(f"{both[0]}: given both as an argument and in options; give it once")
+        return opts.replace(**extra) if extra else opts

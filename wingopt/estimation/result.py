@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from wingopt.status import RunStatus, from_info
+
 __all__ = ["IdentificationResult", "Estimate"]
 
 
@@ -93,6 +95,26 @@ class IdentificationResult:
         if self.info.get("steady_lift_N") is not None:
             return float(self.info["steady_lift_N"]), float(self.info["steady_lift_std_N"])
         return float(self.lift[-1]), None if self.lift_std is None else float(self.lift_std[-1])
+
+    @property
+    def status(self) -> RunStatus:
+        """One word for the run (:class:`~wingopt.status.RunStatus`): ``converged``, ``misfit`` (the
+        model does not explain the data), ``not_converged`` or ``failed`` (no finite lift)."""
+        return from_info(self.info, self.reported_lift[0] if len(self.lift) else float("nan"))
+
+    def __repr__(self) -> str:
+        # The default repr prints every array (15 000 characters for 0.3 s of data): a notebook
+        # needs the answer, its band and whether to trust it.
+        n = len(self.t)
+        if not n:
+            return f"IdentificationResult(method={self.method!r}, no samples, status='{self.status}')"
+        lift, std = self.reported_lift
+        band = "" if std is None else f" ± {std:.3g}"
+        return (
+            f"IdentificationResult(method={self.method!r}, lift={lift:.4g}{band} N, status='{self.status}', "
+            f"samples={n}, t={self.t[0]:.4g}..{self.t[-1]:.4g} s, load coefficients={self.load.shape[-1]}, "
+            f"lambda={self.regularization:.3g}, wall={self.wall_s:.3g} s)"
+        )
 
     @property
     def final_load(self) -> np.ndarray:

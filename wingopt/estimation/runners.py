@@ -201,6 +201,10 @@ def build_stream(spec: EstimatorSpec, model: MembraneModel, options: IdentifyOpt
     return StreamingEstimator(model, StreamSettings(mhe=mhe_settings(options)), options.noise_std, options.initial_load)
 
 
+CROSS_CHECK = "[fvk cross-check]"
+"""The source prefix of the warnings of the FvK fit that :func:`model_form_band` runs."""
+
+
 def model_form_band(model: MembraneModel, meas: Measurements, result: IdentificationResult, initial_load):
     """Widen a flagged linear-MHE band by its distance to the FvK whole-record estimate of the same data.
 
@@ -224,8 +228,12 @@ def model_form_band(model: MembraneModel, meas: Measurements, result: Identifica
         "alternative_adequate": alt.info.get("model_adequate"),
         "difference_N": diff,
     }
+    # The cross-check's own warnings (its fit's adequacy, its iteration cap) are about the FvK fit,
+    # not this estimate: they say so, and come once, after this estimate's own.
     info["warnings"] = list(info.get("warnings", [])) + [
-        f"model-form uncertainty: the FvK whole-record estimator gives {alt_lift:.4g} N on the same data "
-        f"(± {alt_std:.3g} N), {diff:+.3g} N from this estimate; the band reaches across that estimate's band"
+        f"{CROSS_CHECK} model-form uncertainty: the FvK whole-record estimator gives {alt_lift:.4g} N on the "
+        f"same data (± {alt_std:.3g} N), {diff:+.3g} N from this estimate; the band reaches across that "
+        "estimate's band",
+        *(f"{CROSS_CHECK} {w}" for w in alt.info.get("warnings", [])),
     ]
     return dataclasses.replace(result, lift_std=std, info=info)

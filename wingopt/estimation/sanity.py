@@ -23,6 +23,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from wingopt.errors import InputError
+from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
 
 __all__ = [
     "RESERVED_NAMES",
@@ -42,6 +43,8 @@ __all__ = [
     "residual_chi2_per_datum",
     "record_checks",
     "fit_checks",
+    "used_sigma",
+    "sourced",
 ]
 
 RESERVED_NAMES = frozenset({"t", "time"})
@@ -311,11 +314,33 @@ def record_checks(model, meas, reference_load: float) -> list[str]:
         check_time_step(float(np.median(np.diff(meas.t))), meas.source or "data")
     check_stretch_sign(meas.values, names, meas.source or "data")
     warnings = units_warnings(meas.values, names, model.problem.material.prestrain)
+    if meas.simulated:
+        # The package wrote these values itself, in its own unit: a "values in percent?" hint on
+        # them (the protocol's L2 peaks above the pre-strain) would only teach users to ignore it.
+        warnings = []
     load = abs(reference_load) if reference_load else 200.0
     corr = sensitivity_correlation(model, load)
     problem = model.problem
     warnings += layout_warnings([s.rect for s in problem.sensors], names, problem.width, problem.height, corr)
     return warnings
+
+
+def used_sigma(meas, result):
+    """The noise std the estimator used (or the data's own estimate) for the fit check; ``None``
+    when the data give none."""
+    sigma = result.info.get("noise_std", meas.noise_std)
+    if sigma is None:
+        try:
+            sigma = estimate_noise_std(meas.values, MHE_NOISE, meas.sensor_names)
+        except InputError:
+            return None
+    return np.asarray(sigma, dtype=float)
+
+
+def sourced(source: str, warnings: Sequence[str]) -> list[str]:
+    """``warnings`` each prefixed ``[source]`` so that a reader knows which check or fit said it
+    (one that already names its source, an inner cross-check's, keeps that)."""
+    return [w if w.startswith("[") else f"[{source}] {w}" for w in warnings]
 
 
 def fit_checks(model, meas, result, sigma: np.ndarray | None) -> list[str]:

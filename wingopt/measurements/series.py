@@ -37,6 +37,9 @@ class Measurements:
         Known noise standard deviation per sensor; ``None`` when it must be estimated.
     source : str
         Where the data came from (a file name, or ``"simulated L1 1% seed 0"``).
+    simulated : bool
+        The package simulated these values (:mod:`wingopt.membrane.truth`): they are in its own
+        units, so the unit and scale hints of :mod:`wingopt.estimation.sanity` do not apply.
     """
 
     t: np.ndarray
@@ -44,6 +47,7 @@ class Measurements:
     sensor_names: tuple[str, ...]
     noise_std: np.ndarray | None = None
     source: str = ""
+    simulated: bool = False
 
     def __post_init__(self) -> None:
         t, v = _real("t", self.t), _real("values", self.values)

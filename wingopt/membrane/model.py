@@ -96,6 +96,15 @@ class MembraneModel:
     def n(self) -> int:
         return self.space.n
 
+    def __repr__(self) -> str:
+        # The dataclass repr prints the problem and every sparse operator (2000+ characters).
+        nx, ny = self.problem.nodes
+        return (
+            f"MembraneModel(problem={self.problem.name!r}, mesh {nx}x{ny}, dofs={self.n}, "
+            f"sensors={len(self.problem.sensors)}, tension={self.problem.material.tension:.4g} N/m, "
+            f"built in {self.build_seconds:.3g} s)"
+        )
+
     @property
     def mass(self) -> sp.csr_matrix:
         """``rho h M``."""

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -51,8 +51,9 @@ class RecordProtocol:
     start : {"bubble", "rest", "static"}
     bubble_peak : float
         Peak of the ``"bubble"`` start (m).
-    noise : float
-        Noise std as a FRACTION of each sensor's peak clean output (0.01 = 1 %).
+    noise_fraction : float
+        Noise std as a FRACTION of each sensor's peak clean output (0.01 = 1 %). The former ``noise``
+        keyword is refused (:class:`~wingopt.errors.InputError` naming this one).
     seed : int or None
         Noise (and dropped-sample) seed.
     load_factor : callable ``t -> factor``, optional
@@ -67,21 +68,29 @@ class RecordProtocol:
     dt: float | None = None
     start: str = "bubble"
     bubble_peak: float = 0.01
-    noise: float = 0.0
+    noise_fraction: float = 0.0
     seed: int | None = 0
     load_factor: Callable | None = None
     drop: float = 0.0
     initial_shape: Callable | None = None
+    noise: float | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
+        if self.noise is not None:
+            # The unit is in the name now: a bare ``noise`` was a fraction here and a percentage on the
+            # command line, and 1 meant 100 % noise in one and 1 % in the other.
+            raise InputError(f"noise = {self.noise!r}: give noise_fraction (0.01 = 1 % of each sensor's peak output)")
         if not (np.isfinite(self.t_end) and self.t_end > 0):
             raise InputError(f"t_end = {self.t_end!r}: expected a positive duration (s)")
         if self.dt is not None and not (np.isfinite(self.dt) and self.dt > 0):
             raise InputError(f"dt = {self.dt!r}: expected a positive sample period (s)")
         if self.start not in STARTS:
             raise InputError(f"start = {self.start!r}: expected one of {', '.join(STARTS)}")
-        if not (np.isfinite(self.noise) and 0 <= self.noise <= 1):
-            raise InputError(f"noise = {self.noise!r}: expected a fraction of the sensors' peak in [0, 1] (0.01 = 1 %)")
+        if not (np.isfinite(self.noise_fraction) and 0 <= self.noise_fraction <= 1):
+            raise InputError(
+                f"noise_fraction = {self.noise_fraction!r}: expected a fraction of the sensors' peak in [0, 1] "
+                "(0.01 = 1 %)"
+            )
         if not (0 <= self.drop < 1):
             raise InputError(f"drop = {self.drop!r}: expected a fraction of samples in [0, 1)")
         if (self.start == "shape") != (self.initial_shape is not None):
@@ -151,14 +160,14 @@ class TruthRecord:
         """Relative L2 error of an estimated deflection field at sample ``k``."""
         return relative_l2(self.truth_model.space, self.true_deflection(k), deflection_field)
 
-    def with_noise(self, noise: float, seed: int | None, tell: bool = False) -> TruthRecord:
-        """The same clean record with other noise (``tell``: the measurements carry its std)."""
-        noisy, sigma = add_noise(self.trajectory.outputs, noise, seed)
+    def with_noise(self, noise_fraction: float, seed: int | None, tell: bool = False) -> TruthRecord:
+        """The same clean record with other noise, ``noise_fraction`` of each sensor's peak output
+        (0.01 = 1 %); ``tell``: the measurements carry its std."""
+        noisy, sigma = add_noise(self.trajectory.outputs, noise_fraction, seed)
         noisy[np.isnan(self.measurements.values)] = np.nan
-        meas = dataclasses.replace(
-            self.measurements, values=noisy, noise_std=sigma if tell else None, source=_source(self, noise, seed)
-        )
-        return dataclasses.replace(self, measurements=meas, noise_fraction=noise, seed=seed, noise_std=sigma)
+        src = _source(self, noise_fraction, seed)
+        meas = dataclasses.replace(self.measurements, values=noisy, noise_std=sigma if tell else None, source=src)
+        return dataclasses.replace(self, measurements=meas, noise_fraction=noise_fraction, seed=seed, noise_std=sigma)
 
     def told(self) -> TruthRecord:
         """The record whose measurements carry the simulated noise std (estimators then need not estimate it)."""
@@ -213,7 +222,7 @@ def simulate_truth(forward, load: str | PressureLoad, protocol: RecordProtocol =
         z0 = None
     rec = forward.run(forcing, protocol.t_end, dt=dt, z0=z0)
     clean = rec.outputs
-    noisy, sigma = add_noise(clean, protocol.noise, protocol.seed)
+    noisy, sigma = add_noise(clean, protocol.noise_fraction, protocol.seed)
     if protocol.drop:
         rng = np.random.default_rng(None if protocol.seed is None else protocol.seed + 104729)
         lost = rng.random(steps + 1) < protocol.drop
@@ -225,10 +234,9 @@ def simulate_truth(forward, load: str | PressureLoad, protocol: RecordProtocol =
     final = float(factor[-1])
     scaled = PressureLoad(load.name, lambda x, y: final * load(x, y), load.description, load.breaks_x, load.breaks_y)
     traj = Trajectory(rec.t, rec.z, rec.zdot, held, clean)
-    meas = Measurements(rec.t, noisy, problem.sensor_names, None, "")
-    out = TruthRecord(
-        scaled, model, traj, meas, protocol.noise, protocol.seed, factor, parameters, forward.physics, sigma, load
-    )
+    meas = Measurements(rec.t, noisy, problem.sensor_names, None, "", simulated=True)
+    noise = protocol.noise_fraction
+    out = TruthRecord(scaled, model, traj, meas, noise, protocol.seed, factor, parameters, forward.physics, sigma, load)
     return dataclasses.replace(
-        out, measurements=dataclasses.replace(meas, source=_source(out, protocol.noise, protocol.seed))
+        out, measurements=dataclasses.replace(meas, source=_source(out, protocol.noise_fraction, protocol.seed))
     )

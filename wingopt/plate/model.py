@@ -175,6 +175,14 @@ class PlateModel:
     def patch_names(self) -> tuple[str, ...]:
         return self.problem.patch_names
 
+    def __repr__(self) -> str:
+        # The dataclass repr prints the problem, the cell data and every operator (90 000 characters).
+        nx, ny = self.problem.nodes
+        return (
+            f"PlateModel(problem={self.problem.name!r}, mesh {nx}x{ny}, dofs={self.n}, "
+            f"patches={self.n_inputs}, built in {self.build_seconds:.3g} s)"
+        )
+
     # -- dynamics ---------------------------------------------------------------------------------
     @cached_property
     def system(self) -> SecondOrderSystem:

@@ -146,6 +146,18 @@ class MembraneProblem:
     def sensor_names(self) -> tuple[str, ...]:
         return tuple(s.name for s in self.sensors)
 
+    def __repr__(self) -> str:
+        # The dataclass repr nests every material constant and sensor rectangle (about 1000
+        # characters); the fields stay reachable as attributes.
+        nx, ny = self.nodes
+        names = ",".join(self.sensor_names)
+        names = names if len(names) <= 40 else names[:37] + "..."
+        return (
+            f"MembraneProblem(name={self.name!r}, {self.width:g} x {self.height:g} m, mesh {nx}x{ny}, "
+            f"prestrain {self.material.prestrain:g}, {len(self.sensors)} sensors [{names}]"
+            f"{', dic' if self.dic is not None else ''}, source={self.source.rsplit('/', 1)[-1]!r})"
+        )
+
 
 MAX_SENSORS = 1000
 """Most ``[[sensors]]`` a problem may have (each adds a sensor operator and a CSV column)."""

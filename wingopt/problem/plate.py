@@ -212,6 +212,17 @@ class PlateProblem:
         """A copy with fields replaced (``dataclasses.replace``)."""
         return dataclasses.replace(self, **changes)
 
+    def __repr__(self) -> str:
+        # The dataclass repr nests every laminate, ply and patch (about 1700 characters); the
+        # fields stay reachable as attributes.
+        nx, ny = self.nodes
+        act = self.actuators
+        return (
+            f"PlateProblem(name={self.name!r}, {self.width:g} x {self.length:g} m, mesh {nx}x{ny}, "
+            f"{len(self.battens)} battens, {len(self.patches)} patches, voltage {act.vmin:g}..{act.vmax:g} V, "
+            f"source={self.source.rsplit('/', 1)[-1]!r})"
+        )
+
 
 # -- reading ---------------------------------------------------------------------------------------
 

@@ -28,6 +28,7 @@ from wingopt.membrane import MembraneModel
 from wingopt.problem import load_problem, read_problem_table
 from wingopt.problem.toml_text import table_text
 from wingopt.results import ResultDirectory, check_new_file, to_jsonable, write_json, write_text_atomic
+from wingopt.status import RunStatus
 from wingopt.validate import check_number
 
 log = logging.getLogger(__name__)
@@ -52,11 +53,26 @@ class CalibrationRun:
     data_report: dict | None
     wall_s: float
 
+    @property
+    def status(self) -> RunStatus:
+        """The calibration's :class:`~wingopt.status.RunStatus` (``summary()["status"]``)."""
+        return self.calibration.status
+
+    def __repr__(self) -> str:
+        # The dataclass repr prints the problem and the whole record.
+        p = self.calibration.parameters
+        pars = ", ".join(f"{k}={v:.4g}" for k, v in p.items())
+        return (
+            f"CalibrationRun(problem={self.problem.name!r}, data={self.source!r}, samples={self.measurements.count}, "
+            f"{pars}, status='{self.status}', warnings={len(self.calibration.warnings)}, wall={self.wall_s:.3g} s)"
+        )
+
     def summary(self) -> dict:
         c = self.calibration
         names = list(c.parameters)
         return {
             "problem": self.problem.name,
+            "status": str(self.status),
             "data": self.source,
             "data_report": self.data_report,
             "samples": int(self.measurements.count),
@@ -130,7 +146,8 @@ def calibrate_membrane(
     resources.check(resources.estimate_identify(problem.nodes, meas.count, method="batch"), max_memory)
     t0 = time.perf_counter()
     cal = calibrate(MembraneModel.from_problem(fit_problem), meas, noise_std=noise_std)
-    for w in cal.warnings:
+    cal = dataclasses.replace(cal, warnings=[w if w.startswith("[") else f"[calibration] {w}" for w in cal.warnings])
+    for w in cal.warnings:  # each once, naming the fit that said it
         log.warning("%s", w)
     return CalibrationRun(problem, source, meas, cal, report, time.perf_counter() - t0)
 

@@ -43,12 +43,20 @@ class DesignRun:
     backup: Path | None = None
 
 
-def design_settings(*, noise: float = 0.01, t_end: float = 1.0, **fields) -> DesignSettings:
-    """The :class:`DesignSettings` of the command's options: ``noise`` (a fraction of each sensor's
-    peak) and ``t_end`` (the record length, s) set its information; ``fields`` are its own
-    (``criterion``, ``prior``, ``length_scale``, ``nominal_count``, ``aggregate``, ``allow_overlap``)."""
+def design_settings(
+    *, noise_fraction: float = 0.01, t_end: float = 1.0, noise: float | None = None, **fields
+) -> DesignSettings:
+    """The :class:`DesignSettings` of the command's options: ``noise_fraction`` (of each sensor's
+    peak, 0.01 = 1 %; ``wingopt design-sensors --noise`` is in percent) and ``t_end`` (the record
+    length, s) set its information; ``fields`` are its own (``criterion``, ``prior``,
+    ``length_scale``, ``nominal_count``, ``aggregate``, ``allow_overlap``). The former ``noise`` is
+    refused (:class:`InputError`): its unit was not in its name."""
+    if noise is not None:
+        raise InputError(f"noise = {noise!r}: give noise_fraction (0.01 = 1 % of each sensor's peak output)")
     window = min(0.2, t_end) if t_end > 0 else 0.2
-    return DesignSettings(**fields, information=InformationSettings(noise=noise, t_end=t_end, window_s=window))
+    return DesignSettings(
+        **fields, information=InformationSettings(noise_fraction=noise_fraction, t_end=t_end, window_s=window)
+    )
 
 
 def design_layout(problem, count: int, candidates=None, settings: DesignSettings | None = None, montecarlo: int = 0):
@@ -71,7 +79,9 @@ def design_layout(problem, count: int, candidates=None, settings: DesignSettings
         raise InputError(f"problem = {str(problem)!r}: design-sensors needs a membrane problem, got {prob.kind!r}")
     result = design_sensors(prob, count, candidates, s)
     if montecarlo:
-        mcs = MonteCarloSettings(shortlist=montecarlo, noise=s.information.noise, t_end=s.information.t_end)
+        mcs = MonteCarloSettings(
+            shortlist=montecarlo, noise_fraction=s.information.noise_fraction, t_end=s.information.t_end
+        )
         result = adopt(result, rerank(result, mcs))
     return result
 

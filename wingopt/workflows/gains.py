@@ -26,6 +26,7 @@ from wingopt.plots.morph import plot_functional_gains
 from wingopt.problem import as_problem, load_problem
 from wingopt.resources import check_count
 from wingopt.results import OwnedDirectory, ResultDirectory, check_writable, to_jsonable, write_csv, write_json
+from wingopt.status import RunStatus, from_info, worst
 from wingopt.validate import check_nodes, check_number
 
 __all__ = ["GainsResult", "plate_gains", "write_gains_outputs", "gains_to_directory"]
@@ -38,6 +39,19 @@ class GainsResult:
 
     summary: dict[str, Any]
     profiles: dict[str, dict]
+
+    @property
+    def status(self) -> RunStatus:
+        """The worst of the meshes' :class:`~wingopt.status.RunStatus` (``summary["status"]``)."""
+        return RunStatus(self.summary["status"])
+
+    def __repr__(self) -> str:
+        # The profiles hold every gain curve; the summary's key numbers are enough to recognise a run.
+        meshes = ", ".join(f"{m['mesh']} ({m['dofs']} dofs)" for m in self.summary["meshes"])
+        return (
+            f"GainsResult(problem={self.summary['problem']!r}, r={self.summary['r']:.3g}, meshes=[{meshes}], "
+            f"status='{self.status}')"
+        )
 
 
 def _cached_gain(cache, name: str, r: float, weight_modes: int, states: int) -> tuple[np.ndarray | None, dict]:
@@ -106,8 +120,14 @@ def plate_gains(
                 arrays = {"K": K, "r": r, "weight_modes": wm, "info": json.dumps(to_jsonable(rec))}
                 cache.write(name, lambda tmp, a=arrays: _savez(tmp, a))
         profiles[label] = gain_profiles(model, K)
+        # A gain from an iteration that stopped short (nk-adi's converged flag) is usable but not the
+        # Riccati solution; one with NaN is none.
+        bad = not np.all(np.isfinite(K))
+        rec["status"] = str(RunStatus.FAILED if bad else from_info({"converged": rec.get("converged")}))
         records.append(rec)
-    return GainsResult({"problem": problem.name, "r": r, "weight_modes": wm, "meshes": records}, profiles)
+    status = str(worst(*(RunStatus(rec["status"]) for rec in records)))
+    summary = {"problem": problem.name, "status": status, "r": r, "weight_modes": wm, "meshes": records}
+    return GainsResult(summary, profiles)
 
 
 def _savez(path: Path, arrays: dict) -> None:

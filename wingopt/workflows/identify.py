@@ -28,7 +28,6 @@ import numpy as np
 from wingopt import resources
 from wingopt.errors import InputError
 from wingopt.estimation import sanity
-from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
 from wingopt.estimation.options import IdentifyOptions
 from wingopt.estimation.registry import check_options, resolve
 from wingopt.estimation.result import IdentificationResult
@@ -39,6 +38,7 @@ from wingopt.membrane import MembraneModel, TruthRecord
 from wingopt.membrane.loads import LOAD_CASES
 from wingopt.problem import load_problem
 from wingopt.results import ResultDirectory, write_csv, write_json
+from wingopt.status import RunStatus
 from wingopt.validate import check_nodes, check_number, check_seed
 from wingopt.values import LambdaChoice, NoiseLevel
 from wingopt.workflows.dic import dic_record
@@ -76,6 +76,23 @@ class IdentifyRun:
     def lift(self) -> float:
         return self.result.reported_lift[0]
 
+    @property
+    def status(self) -> RunStatus:
+        """The estimate's :class:`~wingopt.status.RunStatus` (``summary()["status"]``)."""
+        return self.result.status
+
+    def __repr__(self) -> str:
+        # The dataclass repr prints the problem, the model and every array (34 000 characters).
+        lift, std = self.result.reported_lift
+        band = "" if std is None else f" ± {std:.3g}"
+        src = self.protocol.get("load_case") or self.measurements.source.rsplit("/", 1)[-1] or "data"
+        nx, ny = self.problem.nodes
+        return (
+            f"IdentifyRun(problem={self.problem.name!r}, mesh {nx}x{ny}, record={src!r}, method={self.method!r}, "
+            f"lift={lift:.4g}{band} N, status='{self.status}', samples={self.measurements.count}, "
+            f"warnings={len(self.warnings)}, wall={self.wall_s:.3g} s)"
+        )
+
     def errors(self) -> dict:
         """Final relative L2 errors against the truth (simulated records only)."""
         if self.case is None:
@@ -96,6 +113,7 @@ class IdentifyRun:
         out: dict[str, Any] = {
             "problem": self.problem.name,
             "method": self.method,
+            "status": str(self.status),
             "mesh": list(self.problem.nodes),
             **self.protocol,
             "lift_N": self.lift,
@@ -128,18 +146,6 @@ def _with_noise_std(meas: Measurements, std: float | None) -> Measurements:
     if std is None:
         return dataclasses.replace(meas, noise_std=None)
     return dataclasses.replace(meas, noise_std=np.full(len(meas.sensor_names), float(std)))
-
-
-def _options(options, **legacy) -> IdentifyOptions:
-    """``options`` with the keyword arguments that name an option folded in (each given once)."""
-    opts = options if options is not None else IdentifyOptions()
-    if not isinstance(opts, IdentifyOptions):
-        raise InputError(f"options = {type(opts).__name__}: expected wingopt.estimation.options.IdentifyOptions")
-    extra = {k: v for k, v in legacy.items() if v is not None}
-    both = sorted(set(extra) & set(opts.given))
-    if both:
-        raise InputError(f"{both[0]}: given both as an argument and in options; give it once")
-    return opts.replace(**extra) if extra else opts
 
 
 def identify(
@@ -207,7 +213,8 @@ def identify(
         Shorthands for the same fields of ``options``: the sign prior (Pa), the sensor noise std
         (sensor units; default: estimated from the data) and the lambda choice.
     noise : float, optional
-        No longer accepted (it was a fraction): give ``noise_percent``.
+        No longer accepted (it was a fraction, the command line's a percentage): an ``InputError`` names
+        ``noise_percent`` (simulated noise) and ``noise_std`` (the sensors' noise).
 
     Returns
     -------
@@ -216,8 +223,8 @@ def identify(
     """
     if noise is not None:
         raise InputError(
-            f"noise = {noise!r}: the noise is given in percent as noise_percent (noise_percent=1 is 1 %, "
-            f"as wingopt identify --noise 1)"
+            f"noise = {noise!r}: ambiguous unit; give noise_percent (simulated noise, 1 = 1 % of each sensor's "
+            "peak, as wingopt identify --noise 1) or noise_std (the sensors' noise std, sensor units)"
         )
     if isinstance(problem, (str, Path)):
         problem = load_problem(problem)
@@ -250,7 +257,7 @@ def identify(
         raise InputError(
             f"settings = {settings!r}: expected an MHESettings, RealisticSettings or FullFieldSettings (or None)"
         )
-    opts = _options(options, initial_load=initial_load, noise_std=noise_std, lam=lam)
+    opts = IdentifyOptions.merged(options, initial_load=initial_load, noise_std=noise_std, lam=lam)
     spec = resolve(method, model, simulated=truth if load is not None else None, frames=dic is not None)
     check_options(spec, opts)
     if settings is not None and spec.method not in ("mhe", "batch", "fullfield"):
@@ -304,27 +311,17 @@ def identify(
     if load is None:
         resources.check(resources.estimate_identify(problem.nodes, meas.count, method=spec.method), max_memory)
     prior = opts.initial_load if opts.initial_load is not None else problem.identification.initial_load
-    warnings = sanity.record_checks(membrane, meas, prior)
+    warnings = sanity.sourced("data check", sanity.record_checks(membrane, meas, prior))
     t0 = time.perf_counter()
     result = build(spec, membrane, opts, truth=case, settings=settings, frames=frames).run(meas)
     wall = time.perf_counter() - t0
-    warnings += sanity.fit_checks(membrane, meas, result, sanity_sigma(meas, result))
-    warnings += [w for w in result.info.get("warnings", []) if w not in warnings]  # the estimator's adequacy
+    warnings += sanity.sourced("fit check", sanity.fit_checks(membrane, meas, result, sanity.used_sigma(meas, result)))
+    own = sanity.sourced(f"{spec.model} {spec.method}", result.info.get("warnings", []))  # its adequacy
+    warnings += [w for w in own if w not in warnings]
     for w in warnings:  # each once, here: the engines return theirs, they do not print them
         log.warning("%s", w)
     protocol["estimator"] = {"method": spec.method, "membrane": spec.model, "options": opts.as_dict()}
     return IdentifyRun(problem, membrane, spec.method, meas, result, wall, case, report, protocol, warnings)
-
-
-def sanity_sigma(meas: Measurements, result: IdentificationResult):
-    """The noise std the estimator used (or the data's own estimate) for the fit check."""
-    sigma = result.info.get("noise_std", meas.noise_std)
-    if sigma is None:
-        try:
-            sigma = estimate_noise_std(meas.values, MHE_NOISE, meas.sensor_names)
-        except InputError:
-            return None
-    return np.asarray(sigma, dtype=float)
 
 
 def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = True) -> Path:

@@ -31,6 +31,7 @@ from wingopt.plate.shapes import SHAPES
 from wingopt.plots.morph import plot_morph
 from wingopt.problem import load_problem
 from wingopt.results import ResultDirectory, check_writable, write_csv, write_json
+from wingopt.status import RunStatus, from_solver_statuses, worst
 from wingopt.validate import check_nodes, check_number, check_seed
 from wingopt.values import VoltageLimits
 
@@ -110,6 +111,27 @@ class MorphResult:
     extras: dict = field(default_factory=dict)
     warnings: list = field(default_factory=list)
 
+    @property
+    def status(self) -> RunStatus:
+        """One word for the run (:class:`~wingopt.status.RunStatus`, ``summary()["status"]``).
+
+        ``failed``: a non-finite shape error or voltage; ``not_converged``: a QP solve came back
+        inaccurate or at its iteration cap, or the shape error still moves by more than its 2 %
+        settling band in the last fifth of the run (``t_end`` too short for this controller);
+        else ``converged``.
+        """
+        return worst(self.closed_loop.status, from_solver_statuses(self.extras.get("qp_statuses")))
+
+    def __repr__(self) -> str:
+        # The dataclass repr prints the plate model and every history (100 000+ characters).
+        nx, ny = self.model.problem.nodes
+        lo, hi = self.closed_loop.peak_voltage
+        return (
+            f"MorphResult(shape={self.shape!r}, method={self.method!r}, mesh {nx}x{ny}, "
+            f"shape_error={self.closed_loop.final_shape_error:.4g}, status='{self.status}', "
+            f"voltage {lo:.4g}..{hi:.4g} V, t_end={self.t_end:g} s, wall={self.wall_s:.3g} s)"
+        )
+
     def summary(self) -> dict:
         """The spec §7 summary (plus run settings and settling information)."""
         cl = self.closed_loop
@@ -118,6 +140,7 @@ class MorphResult:
         out = {
             "problem": getattr(prob, "name", "plate"),
             "method": self.method,
+            "status": str(self.status),
             "shape": self.shape,
             "mesh": list(prob.nodes),
             "dofs": int(self.model.n),

@@ -60,7 +60,7 @@ def check_truth_settings(truth: str, prestrain, damping) -> None:
 def simulate_case(
     problem: MembraneProblem,
     load: str | PressureLoad,
-    noise: float,
+    noise_fraction: float | None = None,
     seed: int | None = 0,
     truth_nodes: tuple[int, int] | None = TRUTH_NODES,
     t_end: float = 1.0,
@@ -73,6 +73,7 @@ def simulate_case(
     dt: float | None = None,
     substeps: int = 2,
     tell_noise: bool = True,
+    noise: float | None = None,
 ) -> TruthRecord:
     """Simulate a protocol record with its truth on ``truth_nodes`` (``None``: the problem's mesh).
 
@@ -82,8 +83,9 @@ def simulate_case(
         The estimator's problem (material, sensors, ``dt``).
     load : str or PressureLoad
         ``"L1"``, ``"L2"``, ``"L3"``, ``"consistency"``, ``"LE"`` or any pressure field.
-    noise : float
-        Noise std as a FRACTION of each sensor's peak output (0.01 = 1 %).
+    noise_fraction : float
+        Noise std as a FRACTION of each sensor's peak output (0.01 = 1 %; ``identify`` and the
+        command line take ``noise_percent`` / ``--noise`` in percent).
     truth : {"linear", "berger", "fvk"}
         The truth's physics (full order); ``prestrain = (ex, ey)`` and the ``damping`` factor put
         it off the problem file (the estimator still reads the file).
@@ -92,21 +94,35 @@ def simulate_case(
     start : {"bubble", "rest", "static"}
     tell_noise : bool
         The measurements carry the simulated noise std (``False``: estimators must estimate it).
+    noise :
+        No longer accepted (its unit was not in its name): an :class:`InputError` names ``noise_fraction``.
 
     Returns
     -------
     TruthRecord
         The noisy measurements, the truth trajectory and load, and the error metrics against them.
     """
+    if noise is not None or noise_fraction is None:
+        raise InputError(
+            f"noise = {noise!r}: give noise_fraction (0.01 = 1 % of each sensor's peak output); "
+            "wingopt.identify takes noise_percent (1 = 1 %)"
+            if noise is not None
+            else "simulate_case: give noise_fraction (0.01 = 1 % of each sensor's peak output; 0 for a clean record)"
+        )
     check_truth_settings(truth, prestrain, damping)
     if truth_nodes is not None:
         truth_nodes = check_nodes(truth_nodes, "truth_nodes")
     check_number("t_end", t_end, positive=True)
-    check_number("noise", noise, lo=0.0, hi=1.0)
+    check_number("noise_fraction", noise_fraction, lo=0.0, hi=1.0)
     params = MembraneParameters.nominal(problem, prestrain, damping)
     fwd = forward_model(problem, truth, nodes=truth_nodes or problem.nodes, params=params, substeps=substeps)
     protocol = RecordProtocol(
-        t_end=t_end, dt=dt, start=start, noise=noise, seed=seed, load_factor=None if gust is None else gust.factor
+        t_end=t_end,
+        dt=dt,
+        start=start,
+        noise_fraction=noise_fraction,
+        seed=seed,
+        load_factor=None if gust is None else gust.factor,
     )
     rec = simulate_truth(fwd, load, protocol)
     return rec.told() if tell_noise else rec

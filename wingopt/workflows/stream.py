@@ -22,7 +22,9 @@ from pathlib import Path
 import numpy as np
 
 from wingopt.errors import InputError
+from wingopt.estimation import sanity
 from wingopt.measurements.lines import LineSource
+from wingopt.status import RunStatus
 
 __all__ = ["COLUMNS", "LatencyStats", "follow"]
 
@@ -186,13 +188,14 @@ def follow(
         except Exception as exc:  # noqa: BLE001 - the estimator's state after a failure may not summarise
             summary = {"problem": problem.name, "source": name, "stopped": lines.reason, "samples": live.rows,
                        "rows_written": live.rows, "lift_N": None, "lift_std_N": None,
-                       "summary_error": f"{type(exc).__name__}: {exc}", "warnings": []}  # fmt: skip
+                       "summary_error": f"{type(exc).__name__}: {exc}", "warnings": [], "status": "failed"}  # fmt: skip
         if steady is not None:
             summary.update(_steady_summary(est, steady, summary))
         if lines.restarts:
             summary["restarts"] = list(lines.restarts)
         scale = sanity.scale_warnings(peak[0], peak[1], problem.material.prestrain)
-        summary["warnings"] = list(summary.get("warnings", [])) + scale
+        own = sanity.sourced(method, summary.get("warnings", []))  # each names its source, as identify's
+        summary["warnings"] = own + sanity.sourced("data check", scale)
         summary["method"] = method
         summary["membrane"] = spec.model
         summary["options"] = options.as_dict()
@@ -254,6 +257,16 @@ def _as_stream_error(exc: BaseException, method: str, rows: int, out) -> BaseExc
     )
 
 
+def _status(finite: bool, info: dict, last) -> RunStatus:
+    """The stream's :class:`~wingopt.status.RunStatus`: ``failed`` without a finite estimate,
+    ``not_converged`` before the start-up finished, ``misfit`` when the last window is not explained."""
+    if not finite:
+        return RunStatus.FAILED
+    if info.get("phase") not in ("tracking", "steady"):
+        return RunStatus.NOT_CONVERGED
+    return RunStatus.CONVERGED if last.adequate else RunStatus.MISFIT
+
+
 def _summary(est, parser, reason, cpu, wall, bad, first_bad, source, problem, rows_written) -> dict:
     last = est.last
     finite = last is not None and np.isfinite(last.lift)
@@ -294,6 +307,7 @@ def _summary(est, parser, reason, cpu, wall, bad, first_bad, source, problem, ro
             "ignored_columns": parser.ignored_columns,
             "dt_s": parser.dt,
         },
+        "status": str(_status(finite, info, last)),
         "lift_N": float(last.lift) if finite else None,
         "lift_std_N": float(last.lift_std) if finite else None,
         "chi2_per_datum": float(last.chi2_per_datum) if finite else None,
@@ -312,6 +326,7 @@ def _steady_summary(est, result, summary: dict) -> dict:
     live = {k: summary.get(k) for k in ("lift_N", "lift_std_N", "chi2_per_datum", "adequate")}
     chi2 = result.info.get("adequacy", {}).get("chi2_per_datum")
     own = [w for w in summary.get("warnings", []) if "window misfit" not in w]  # the refit explains the record
+    refit = sanity.sourced("steady refit", list(result.info.get("warnings", [])))
     return {
         "lift_N": lift,
         "lift_std_N": std,
@@ -324,5 +339,6 @@ def _steady_summary(est, result, summary: dict) -> dict:
         "steady": {
             k: result.info.get(k) for k in ("tension", "solutions", "chosen", "model", "parameters", "parameters_std")
         },  # fmt: skip
-        "warnings": own + list(result.info.get("warnings", [])),
+        "status": str(result.status),
+        "warnings": own + refit,
     }

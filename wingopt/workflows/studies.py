@@ -66,13 +66,13 @@ def protocol_sign(load: str) -> float:
     return -1.0 if load == "consistency" else 1.0
 
 
-def noisy_case(clean: TruthRecord, noise: float, seed: int, tell_noise: bool = False) -> TruthRecord:
-    """``clean`` (a noise-free protocol run) with noise ``noise`` (fraction) drawn from ``seed``.
+def noisy_case(clean: TruthRecord, noise_fraction: float, seed: int, tell_noise: bool = False) -> TruthRecord:
+    """``clean`` (a noise-free protocol run) with noise ``noise_fraction`` (0.01 = 1 %) drawn from ``seed``.
 
     Same as :func:`~wingopt.workflows.protocols.simulate_case` with that noise; ``tell_noise``
     passes the noise level on to the estimators (by default they estimate it from the data).
     """
-    return clean.with_noise(noise, seed, tell_noise)
+    return clean.with_noise(noise_fraction, seed, tell_noise)
 
 
 def load_field(result: IdentificationResult, model: MembraneModel, k: int = -1) -> Callable:

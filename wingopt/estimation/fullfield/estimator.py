@@ -106,8 +106,7 @@ def fullfield_identify(
         dyn = dynamic_tension(data, best.shapes, best.system, y0, weight, pp)
         if dyn.used:
             fits = [fit_prior(lb, sh, sy, y0, weight, pp, "prior", (dyn.theta, dyn.cov)) for lb, sh, sy in systems]
-        elif s.prestrain == "dynamics":
-            log.warning("the frames' dynamics do not give the tension (%s): the prior's is used", dyn.reason)
+        # (asked for the dynamics and not given them: _info's warnings say so, once, in the result)
     z = np.array([f.log_evidence for f in fits])
     w = np.exp(z - z.max())
     w /= w.sum()
@@ -176,6 +175,8 @@ def _info(s, mode, data, fits, w, best: SteadyFit, mean, std, pp: PrestrainPrior
     sx, sy = best.prestrain_std
     fr = data.frames
     warnings = _warnings(best, pp, data, dyn is not None and dyn.used)
+    if s.prestrain == "dynamics" and dyn is not None and not dyn.used:
+        warnings.append(f"the frames' dynamics do not give the tension ({dyn.reason}): the prior's is used")
     return {
         "backend": "full field (DIC): pressure from shape, static FvK balance (full order), priors weighed by evidence",
         "model": "nonlinear (FvK, full order)",

@@ -43,6 +43,7 @@ def noise_free(case):
         sensor_names=case.measurements.sensor_names,
         noise_std=np.zeros(case.trajectory.outputs.shape[1]),
         source=f"noise-free {case.load.name}",
+        simulated=True,
     )
     return dataclasses.replace(case, measurements=meas, noise_fraction=0.0, seed=None)
 

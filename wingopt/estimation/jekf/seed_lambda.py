@@ -71,7 +71,7 @@ def seed_lambda(
 
     **This uses the true load** (``case.load_error``): it is the seed's method, kept as the
     baseline ("seed-faithful JEKF"); it cannot be used on measured data. The seed ran it on a
-    noise-free simulation (``simulate_case(problem, load, noise=0.0)``) and used the result for
+    noise-free simulation (``simulate_case(problem, load, noise_fraction=0.0)``) and used the result for
     all noise levels.
 
     Parameters

@@ -201,13 +201,15 @@ class MovingHorizonEstimator(StartUp, WindowInformation):
         self.onset: dict = {"samples_skipped": 0, "t_start": float(meas.t[0]), "attempts": []}
         self.start = 0
         self._shift = self.stride
+        # Warnings go into the result (info["warnings"]) for the workflow to report once; logging
+        # them here as well printed them twice on the command line.
+        self.warnings: list[str] = []
         sol, report = self._first_window()
         self.start_report = report
         if report.sign_score < SIGN_MARGIN:
-            log.warning(
-                "the sign of the load is not determined by the prior (score %.3f): a load without net lift "
-                "needs the initial-deflection prior (initial_deflection) to fix its sign",
-                report.sign_score,
+            self.warnings.append(
+                f"the sign of the load is not determined by the prior (score {report.sign_score:.3f}): a load "
+                "without net lift needs the initial-deflection prior (initial_deflection) to fix its sign"
             )
         self._accept(sol, first=True)
         self.setup_seconds = time.perf_counter() - t0
@@ -343,6 +345,7 @@ class MovingHorizonEstimator(StartUp, WindowInformation):
                 "candidates": self.start_report.candidates,
             },
             "statuses": sorted({w["status"] for w in self._windows}),
+            "warnings": list(self.warnings),
         }
         res = IdentificationResult(
             method="mhe",

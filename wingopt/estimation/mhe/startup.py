@@ -71,7 +71,7 @@ class StartUp:
             if skip == 0:
                 break
             if self.start + skip + self.N > self.K:
-                log.warning(
+                self.warnings.append(
                     "the load model does not explain the start of the record and too little data is left "
                     "to skip it: keeping the first window as it is"
                 )

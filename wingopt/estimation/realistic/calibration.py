@@ -33,6 +33,7 @@ from wingopt.estimation.realistic.solver import levenberg_marquardt
 from wingopt.estimation.realistic.start import initial_state_prior, modal_model
 from wingopt.measurements import Measurements
 from wingopt.membrane import MembraneModel
+from wingopt.status import RunStatus, from_info
 
 __all__ = ["Calibration", "calibrate"]
 
@@ -77,6 +78,13 @@ class Calibration:
     adequate: bool
     warnings: list[str] = field(default_factory=list)
     info: dict = field(default_factory=dict)
+
+    @property
+    def status(self) -> RunStatus:
+        """One word (:class:`~wingopt.status.RunStatus`): ``failed`` (a non-finite parameter),
+        ``not_converged`` (the fit stopped at its iteration cap), ``misfit`` (the model does not
+        explain the record) or ``converged``."""
+        return from_info({**self.info, "model_adequate": self.adequate}, *self.parameters.values())
 
 
 def _starts(rp: RecordProblem, known: bool) -> list[np.ndarray]:

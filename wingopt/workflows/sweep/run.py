@@ -64,7 +64,7 @@ def sweep_tasks(spec: SweepSpec) -> tuple[list[SweepTask], list[SharedInput]]:
         method = run.params["method"]
         offsets = tuple(ORACLE_OFFSETS) if spec.oracle and method == "mhe" else None
         sign = protocol_sign(run.load) * abs(run.problem.identification.initial_load)
-        args = (run.params, method, run.noise, int(run.params["seed"]), run.settings, sign, offsets)
+        args = (run.params, method, run.noise_fraction, int(run.params["seed"]), run.settings, sign, offsets)
         cost = task_cost(method, run.problem.nodes, run.t_end, bool(offsets))
         tasks.append(SweepTask(task_key(run.params), protocol_record, args, (truth_key, model_key), cost))
     return tasks, list(shared.values())

@@ -75,8 +75,8 @@ class Run:
         return self.params["load"]
 
     @property
-    def noise(self) -> float:
-        """Noise as a fraction (the spec gives percent)."""
+    def noise_fraction(self) -> float:
+        """Noise as a fraction, 0.01 = 1 % (the spec's ``noise`` is in percent)."""
         return self.params["noise"] / 100.0
 
 
