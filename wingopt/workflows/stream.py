@@ -99,7 +99,6 @@ def follow(
     dict
         ``samples``, ``lift_N``, ``lift_std_N``, ``stopped``, ``latency``, ``warnings``, ...
     """
-    from wingopt.estimation import sanity
     from wingopt.estimation.options import IdentifyOptions
     from wingopt.estimation.registry import resolve
     from wingopt.estimation.runners import build
