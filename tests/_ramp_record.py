@@ -1,8 +1,8 @@
 """A linear-truth record with a ramped onset from rest, written at test time (was the shipped example).
 
-The old example record (``examples/data/synthetic_tunnel_300Hz.csv``, made by
-``examples/make_synthetic_tunnel_data.py``) is replaced by the tunnel stand-in (FvK truth, steady
-start); the tests of the linear MHE's onset handling still need its kind of record, so its generator
+The package's first example record (linear truth, from rest, 0.42 N) and its generator script
+were replaced by the tunnel stand-in (FvK truth, steady start, ``examples/data/tunnel_300Hz.csv``);
+the tests of the linear MHE's onset handling still need its kind of record, so its generator
 lives here and writes that record into a test's ``tmp_path`` (same generator and seed; simulated
 with the package's current linear model, so its numbers differ slightly from the old file's):
 
@@ -13,7 +13,7 @@ with the package's current linear model, so its numbers differ slightly from the
 * 300 Hz sampling for 1.5 s (451 rows), 2 % Gaussian noise per sensor, 2 % of the frames dropped
   (6 rows of empty cells).
 
-Simulating it costs about 2 s of CPU (the 49x25 truth).
+Simulating it costs under 1 s of CPU (the 49x25 truth; measured 0.65 s).
 """
 
 from __future__ import annotations
