@@ -46,11 +46,11 @@ import time
 from pathlib import Path
 
 ROOT = Path(os.environ.get("WINGOPT_ROOT") or Path(__file__).resolve().parent.parent).resolve()
-RECORD = ROOT / "examples" / "data" / "synthetic_tunnel_300Hz.csv"
+RECORD = ROOT / "examples" / "data" / "tunnel_300Hz.csv"  # the tunnel stand-in: FvK truth, steady, 1381 rows
 CALIBRATION = ROOT / "examples" / "data" / "tunnel_calibration_300Hz.csv"
 MEMBRANE = (ROOT / "problems" / "membrane.toml").read_text()
 PLATE = (ROOT / "problems" / "plate.toml").read_text()
-TRUE_LIFT = 0.421124  # the record's header: "true lift 0.421124 N"
+TRUE_LIFT = 1.763967  # the record's header: "true mean lift 1.763967 N"
 
 TIMEOUT = 120.0  # s; a case still running is a HANG
 SIZE_TIMEOUT = 45.0  # s; cases whose right answer is a quick refusal before any work
@@ -99,7 +99,7 @@ def _record_values() -> list[list[str]]:
     return out
 
 
-VALUES = _record_values()  # 451 rows of 4 cells (some empty: dropped frames)
+VALUES = _record_values()  # 1381 rows of 4 cells (13 empty: dropped frames)
 
 
 def rows(i0: int = 0, i1: int | None = None, k0: int | None = None, scale: float = 1.0) -> list[str]:
@@ -456,11 +456,12 @@ def cases() -> list[dict]:
         files={"x.csv": csv_text(["0.000000,0.00" + "1" * 100_000 + ",1e-4,1e-4,1e-4", *rows(1)])},
         names=["x.csv"],
     )
+    negative = [f"{(k - len(VALUES)) * DT:.6f}," + r.split(",", 1)[1] for k, r in enumerate(rows())]
     add(
         "idd negative start time",
         "identify --data",
         ["identify", "membrane", "--data", "x.csv", *FAST, *LIN, *out],
-        files={"x.csv": csv_text([f"{(k - 451) * DT:.6f}," + r.split(",", 1)[1] for k, r in enumerate(rows())])},
+        files={"x.csv": csv_text(negative)},
         truth=TRUE_LIFT,
     )
     size(

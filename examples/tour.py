@@ -42,8 +42,8 @@ def main(quick: bool = False, out: Path | None = None) -> dict:
     )
     wo.write_identify_outputs(run, out / "L1")
 
-    # 4. The same from a measured record (here the package's synthetic example file).
-    data = Path(__file__).parent / "data" / "synthetic_tunnel_300Hz.csv"
+    # 4. The same from a measured record (here the package's synthetic wind-tunnel stand-in).
+    data = Path(__file__).parent / "data" / "tunnel_300Hz.csv"
     meas, report = wo.read_measurements(data, membrane.sensor_names)
     numbers["csv_rows"], numbers["csv_missing"] = report.rows, report.missing_rows
     print(f"{data.name}: {report.rows} rows at {1 / report.dt:.0f} Hz, {report.missing_rows} missing")

@@ -18,7 +18,7 @@ import wingopt as wo
 from wingopt.errors import WingoptError
 
 ROOT = Path(__file__).resolve().parents[1]
-REC = ROOT / "examples" / "data" / "synthetic_tunnel_300Hz.csv"
+REC = ROOT / "examples" / "data" / "tunnel_calibration_300Hz.csv"  # any shipped record: every call is refused
 NAMES = ("S1", "S2", "S3", "S4")
 NAN = float("nan")
 

@@ -98,7 +98,7 @@ def test_noise_percent_sign_is_explicit():
     assert parse_noise("0.05%") == pytest.approx(5e-4) and parse_noise("0") == 0.0
 
 
-def test_identify_from_csv_with_missing_rows_and_gaps(record, small_file, tmp_path, capsys):
+def test_identify_from_a_csv_with_missing_rows_and_gaps(record, small_file, tmp_path, capsys):
     problem, case = record
     meas = case.measurements
     vals = meas.values.copy()

@@ -1,17 +1,16 @@
 """MHE on realistic records (wind-tunnel use case): start from rest, a ramped load onset, 300 Hz and
 1 kHz, time-varying loads with the random walk.
 
-Truth on 49x25, estimator on 25x13, 2 % noise, 1.5 s, the example's leading-edge-peaked lift
-(``examples/make_synthetic_tunnel_data.py``). Before the consistency test and the load-scaled random
-walk, a 40 ms ramp from rest put the final lift 37 % low (load error 1.58) and the random walk
-wandered by +-30 % on a constant load (docs/estimation.md, "Robustness on measured records").
+Truth on 49x25, estimator on 25x13, 2 % noise, 1.5 s, the leading-edge-peaked lift of the old
+example record (its generator is now the test helper ``tests/_ramp_record.py``; the records here are
+simulated in memory, as before, and measure the same things). Before the consistency test and the
+load-scaled random walk, a 40 ms ramp from rest put the final lift 37 % low (load error 1.58) and the
+random walk wandered by +-30 % on a constant load (docs/estimation.md, "Robustness on measured records").
 """
-
-import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pytest
+from _ramp_record import RISE_S, pressure
 
 from wingopt.estimation.mhe import MHESettings, mhe_identify
 from wingopt.fe import integrate
@@ -19,24 +18,14 @@ from wingopt.measurements.series import Measurements
 from wingopt.membrane import add_noise, forward_model, relative_l2
 from wingopt.workflows.studies import load_field
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-RISE_S = 0.04
 SEED = 11  # noise seed of these checks (the design records used 300-302, the reports 1 and 500-504)
-
-
-def _tunnel_module():
-    path = EXAMPLES / "make_synthetic_tunnel_data.py"
-    spec = importlib.util.spec_from_file_location("make_synthetic_tunnel_data", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 @pytest.fixture(scope="module")
 def tunnel(membrane_problem, membrane_models):
     """(truth model, estimator model, pressure callable, load coefficients on the truth, true lift)."""
     truth, est = membrane_models[(49, 25)], membrane_models[(25, 13)]
-    P = _tunnel_module().pressure(membrane_problem)
+    P = pressure(membrane_problem)
     return truth, est, P, truth.project(P), integrate(truth.space, P, order=8)
 
 

@@ -18,7 +18,9 @@ from wingopt.cli import EXIT_INTERNAL, main
 from wingopt.estimation.sanity import SCALE_BAND, scale_warnings
 
 ROOT = Path(__file__).resolve().parents[1]
-RECORD = ROOT / "examples" / "data" / "synthetic_tunnel_300Hz.csv"
+# the tunnel stand-in: readings peak at 0.0197 (S1), inside the band; x1e-3 is below it (the calibration
+# record peaks at 0.061, above the pre-strain, and x1e-3 would still be inside the band)
+RECORD = ROOT / "examples" / "data" / "tunnel_300Hz.csv"
 MEMBRANE = (ROOT / "problems" / "membrane.toml").read_text()
 SPEC = 'problem = "membrane"\ntruth_mesh = "19x10"\nt_end = 0.2\n[grid]\nload = ["L1"]\n'
 
@@ -118,9 +120,10 @@ def test_a_study_with_nothing_to_run_is_refused(argv, tmp_path, capsys):
 
 def test_the_scale_band_is_the_same_rule_both_ways():
     prestrain = 0.05
-    assert scale_warnings(0.0043, "S1", prestrain) == []  # the shipped record
-    assert scale_warnings(0.43, "S1", prestrain)  # x100: above the pre-strain
-    assert scale_warnings(0.0043e-2, "S1", prestrain)  # x1e-2: below 1/1000 of it
+    assert scale_warnings(0.0197, "S1", prestrain) == []  # the shipped tunnel record's peak
+    assert scale_warnings(0.197, "S1", prestrain)  # x10: above the pre-strain (x100 is refused before: > 0.5)
+    assert scale_warnings(0.0197e-3, "S1", prestrain)  # x1e-3: below 1/1000 of it
+    assert scale_warnings(0.0197e-2, "S1", prestrain) == []  # x1e-2: still inside
     assert scale_warnings(0.9 * prestrain, "S1", prestrain) == []
     assert scale_warnings(1.1 * SCALE_BAND * prestrain, "S1", prestrain) == []
 

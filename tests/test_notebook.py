@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _ramp_record import write_record
 
 import wingopt as wo
 from wingopt.dynamics.statespace import StateSpace
@@ -22,10 +23,16 @@ from wingopt.membrane import MembraneModel
 from wingopt.status import RunStatus, from_info, from_solver_statuses, worst
 
 ROOT = Path(__file__).resolve().parents[1]
-RECORD = ROOT / "examples" / "data" / "synthetic_tunnel_300Hz.csv"
 SHORT = dict(truth_nodes=None, t_end=0.3, method="mhe", nodes=(13, 7))
 REPR_MAX = 300
 """A repr a notebook prints in one or two lines (they were 1 000 to 90 000 characters)."""
+
+
+@pytest.fixture(scope="module")
+def ramp(tmp_path_factory):
+    """A record from rest with a 40 ms load ramp, linear truth (tests/_ramp_record.py): the linear MHE
+    flags it (the ramp it leaves out)."""
+    return write_record(tmp_path_factory.mktemp("ramp") / "ramp.csv")
 
 
 @pytest.fixture(scope="module")
@@ -104,17 +111,17 @@ def test_identification_status_comes_from_its_diagnostics(l1_run, tmp_path):
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["status"] == "converged"
 
 
-def test_a_flagged_record_is_a_misfit_in_summary_json(tmp_path):
+def test_a_flagged_record_is_a_misfit_in_summary_json(tmp_path, ramp):
     run = wo.identify(
         wo.load_problem("membrane").with_mesh((13, 7)),
-        data=RECORD,
+        data=ramp,
         model="linear",
         options=IdentifyOptions(model_form=False),
     )
     assert run.result.info["model_adequate"] is False
     assert run.status is RunStatus.MISFIT and run.summary()["status"] == "misfit"
     r = repr(run)
-    assert len(r) <= REPR_MAX and "record='synthetic_tunnel_300Hz.csv'" in r and "status='misfit'" in r, r
+    assert len(r) <= REPR_MAX and "record='ramp.csv'" in r and "status='misfit'" in r, r
     assert "warnings=2" in r
 
 
@@ -199,9 +206,9 @@ def test_an_engine_warning_is_in_the_result_and_logged_once(caplog):
     assert run.summary()["warnings"] == run.warnings
 
 
-def test_cli_identify_prints_each_warning_once_with_its_source(tmp_path):
+def test_cli_identify_prints_each_warning_once_with_its_source(tmp_path, ramp):
     out = tmp_path / "run"
-    cmd = [sys.executable, "-m", "wingopt", "identify", "membrane", "--data", str(RECORD), "--model", "linear"]
+    cmd = [sys.executable, "-m", "wingopt", "identify", "membrane", "--data", str(ramp), "--model", "linear"]
     cmd += ["--no-model-form", "--mesh", "13x7", "--noise-std", "0.00035", "--no-plots", "--out", str(out)]
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=300)
@@ -219,7 +226,7 @@ def test_cli_identify_prints_each_warning_once_with_its_source(tmp_path):
     assert "3 warning(s)" in proc.stdout and " [misfit], " in proc.stdout  # the status on the result line
 
 
-def test_the_cross_checks_warnings_say_they_are_its(monkeypatch, tmp_path, capsys):
+def test_the_cross_checks_warnings_say_they_are_its(monkeypatch, tmp_path, capsys, ramp):
     """The FvK cross-check of a flagged linear MHE (98 s of CPU on this record) replaced by a stub
     that warns: its warnings reach the summary and stderr once each, prefixed as the cross-check's."""
     from wingopt.cli import main
@@ -232,7 +239,7 @@ def test_the_cross_checks_warnings_say_they_are_its(monkeypatch, tmp_path, capsy
 
     monkeypatch.setattr(runners, "realistic_identify", stub)
     out = tmp_path / "run"
-    args = ["identify", "membrane", "--data", str(RECORD), "--model", "linear", "--mesh", "13x7", "--no-plots"]
+    args = ["identify", "membrane", "--data", str(ramp), "--model", "linear", "--mesh", "13x7", "--no-plots"]
     assert main([*args, "--out", str(out)]) == 0
     cap = capsys.readouterr()
     warnings = json.loads((out / "summary.json").read_text())["warnings"]

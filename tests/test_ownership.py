@@ -27,7 +27,7 @@ from wingopt.results.ownership import MARKER, first_foreign, read_manifest
 from wingopt.workflows.sweep.records import RecordLog, read_records
 
 ROOT = Path(__file__).resolve().parents[1]
-RECORD = ROOT / "examples" / "data" / "synthetic_tunnel_300Hz.csv"
+RECORD = ROOT / "examples" / "data" / "tunnel_calibration_300Hz.csv"  # a short shipped record (151 rows)
 FAST = ["identify", "membrane", "--model", "linear", "--no-model-form", "--mesh", "13x7", "--no-plots"]
 
 
