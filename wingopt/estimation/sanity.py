@@ -38,6 +38,7 @@ __all__ = [
     "units_warnings",
     "scale_warnings",
     "SCALE_BAND",
+    "SCALE_HIGH",
     "fit_warnings",
     "noise_warnings",
     "residual_chi2_per_datum",
@@ -227,20 +228,26 @@ def layout_warnings(rects, names: Sequence[str], width: float, height: float, co
 
 SCALE_BAND = 1.0e-3
 """A record's peak stretch below ``SCALE_BAND`` times the membrane's pre-strain is warned about, as one
-above the pre-strain is: one plausibility band, ``[prestrain / 1000, prestrain]``, both ways. The
-shipped and simulated records peak at 0.004–0.1 (pre-strain 0.05; band 5e-5..0.05); the shipped
-record times 1e-3 (4e-6) gave a lift 30 times too small, times 1e-6 a lift 1000 times too small
-(the load goes with the square root of the stretch), both silently before."""
+above ``SCALE_HIGH`` times it is: one plausibility band, ``[prestrain / 1000, 2 prestrain]``, both
+ways. The shipped and simulated records peak at 0.004–0.06 (pre-strain 0.05; band 5e-5..0.1); a
+record times 1e-3 gave a lift 30 times too small, times 1e-6 a lift 1000 times too small (the load
+goes with the square root of the stretch), both silently before."""
+
+SCALE_HIGH = 2.0
+"""The band's top, in pre-strains. The deflection's stretch reaches the order of the pre-strain on a
+loaded tunnel wing and in a hard calibration push (the shipped release record peaks at 0.061, 1.2
+pre-strains: the FvK models' regime); a record in percent reads 100 times its stretch."""
 
 
 def scale_warnings(peak: float, name: str, prestrain: float) -> list[str]:
     """The plausibility band of a record's peak stretch reading (:data:`SCALE_BAND`), both ways."""
     if not np.isfinite(peak) or peak <= 0:
         return []
-    if peak > prestrain:
+    if peak > SCALE_HIGH * prestrain:
         return [
-            f"sensor {name} reads up to {peak:.3g}, more than the membrane's pre-strain {prestrain:g}: the linear "
-            "model does not hold there; are the values in another unit (percent: divide by 100)?"
+            f"sensor {name} reads up to {peak:.3g}, more than {SCALE_HIGH:g} times the membrane's pre-strain "
+            f"{prestrain:g}: beyond the membrane models' regime; are the values in another unit (percent: divide "
+            "by 100)?"
         ]
     low = SCALE_BAND * prestrain
     if peak < low:
@@ -257,8 +264,9 @@ def units_warnings(values: np.ndarray, names: Sequence[str], prestrain: float) -
     """Refuse a stretch beyond 0.5; warn when the peak is outside the plausibility band (:func:`scale_warnings`).
 
     The linear membrane model keeps the tension of the pre-strain: the extra strain of the deflection,
-    which is what a stretch sensor reads, must stay well below it. The shipped record peaks at 0.0043
-    (pre-strain 0.05); the same record in percent peaks at 0.43 and gave a lift 10 times too high.
+    which is what a stretch sensor reads, must stay well below it; the FvK models follow it up to the
+    order of the pre-strain. A record of 0.0043 peak (pre-strain 0.05) in percent peaks at 0.43 and
+    gave a lift 10 times too high.
     """
     v = np.asarray(values, dtype=float)
     finite = v[np.isfinite(v)]
