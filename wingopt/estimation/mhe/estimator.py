@@ -48,24 +48,29 @@ import numpy as np
 from wingopt.errors import InputError
 from wingopt.estimation.load_space import build_load_space
 from wingopt.estimation.mhe.consistency import first_inconsistent
-from wingopt.estimation.mhe.information import WindowInformation
-from wingopt.estimation.mhe.load_model import l2_metric
+from wingopt.estimation.mhe.information import WindowPrior
 from wingopt.estimation.mhe.model import MHEModel
+from wingopt.estimation.mhe.record import weighted_record
 from wingopt.estimation.mhe.settings import LOAD_MODELS, SIGN_MARGIN, STATE_PRIOR_EVIDENCE, MHESettings
 from wingopt.estimation.mhe.solvers import NumpySolver, WindowSolution, make_solver
-from wingopt.estimation.mhe.start import SignPrior
+from wingopt.estimation.mhe.start import initial_priors
 from wingopt.estimation.mhe.startup import StartUp
-from wingopt.estimation.noise import resolve_noise_std
+from wingopt.estimation.mhe.window import WindowProblem
 from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements.series import Measurements
-from wingopt.membrane import MembraneModel, bubble
+from wingopt.membrane import MembraneModel
 
 __all__ = ["MHESettings", "MovingHorizonEstimator", "mhe_identify", "LOAD_MODELS", "STATE_PRIOR_EVIDENCE"]
 
 log = logging.getLogger(__name__)
 
 
-class MovingHorizonEstimator(StartUp, WindowInformation):
+def _owned(owner: str, name: str, doc: str) -> property:
+    """The read-only attribute ``name`` of the estimator's ``owner`` (its start-up or window prior)."""
+    return property(lambda self: getattr(getattr(self, owner), name), doc=doc)
+
+
+class MovingHorizonEstimator:
     """Step-able moving-horizon load estimator on a :class:`~wingopt.membrane.MembraneModel`.
 
     Parameters
@@ -73,6 +78,14 @@ class MovingHorizonEstimator(StartUp, WindowInformation):
     model : MembraneModel
         The estimator's model (its mesh is the estimation mesh).
     settings : MHESettings
+
+    Notes
+    -----
+    The estimator owns the record (data, weights, histories) and the window's position; a
+    :class:`~wingopt.estimation.mhe.information.WindowPrior` (``window_prior``) owns the window's
+    geometry and arrival cost, a :class:`~wingopt.estimation.mhe.startup.StartUp` (``startup``)
+    the start-up's choices (lambda, state prior, the priors on the initial state and the sign).
+    Both are built by :meth:`setup`.
     """
 
     def __init__(self, model: MembraneModel, settings: MHESettings | None = None) -> None:
@@ -120,91 +133,50 @@ class MovingHorizonEstimator(StartUp, WindowInformation):
             Peak (m) of the prior initial bubble; ``0``: unknown. Default: the problem's
             ``identification.initial_deflection`` when it has one, else 0.
         """
-        if not isinstance(measurements, Measurements):
-            raise InputError(f"measurements = {type(measurements).__name__}: expected a Measurements")
         t0 = time.perf_counter()
         s, red = self.settings, self.reduced
         problem = self.model.problem
         ident = problem.identification
-        meas = measurements
-        if tuple(meas.sensor_names) != tuple(problem.sensor_names):
-            raise InputError(
-                f"measurements: sensors {list(meas.sensor_names)} do not match the problem's "
-                f"{list(problem.sensor_names)}"
-            )
-        if meas.count < 2:
-            raise InputError("measurements: need at least 2 samples")
-        dt = float(np.median(np.diff(meas.t)))
-        if np.max(np.abs(np.diff(meas.t) - dt)) > 1e-6 * dt:
-            raise InputError("measurements: irregular sampling; resample to a uniform time step first")
+        rec = weighted_record(measurements, problem.sensor_names, noise_std, ident.noise_std)
+        dt = rec.dt
         if abs(dt - red.dt) > 1e-9 * red.dt:
             log.info("data sampled at dt = %g s (problem: %g s): rebuilding the reduced model", dt, red.dt)
             self.reduced = red = MHEModel.build(self.model, self.load_space, s.modes, dt)
-        self.dt = dt
-        y = np.array(meas.values, dtype=float)
-        missing = ~np.isfinite(y)
-        self.missing_rows = int(np.count_nonzero(missing.any(axis=1)))
-        if missing.all():
-            raise InputError("measurements: every sample is missing")
-        sigma, source = resolve_noise_std(y, problem.sensor_names, noise_std, meas.noise_std, ident.noise_std)
-        self.noise_std, self.noise_source = sigma, source
-        self.y = np.where(missing, 0.0, y)
-        self.w = np.where(missing, 0.0, 1.0 / sigma**2)
-        self.t = meas.t
-        K = y.shape[0]
-        self.K = K
+        self.dt, self.t, self.y, self.w = dt, rec.t, rec.y, rec.w
+        self.noise_std, self.noise_source, self.missing_rows = rec.noise_std, rec.noise_source, rec.missing_rows
+        self.K = K = self.y.shape[0]
         m = red.m
         # Scaling: modal amplitude A such that the data's largest output is O(1) for mode 1.
-        ymax = float(np.nanmax(np.abs(y)))
         gain = np.max(np.stack([np.diag(C) for C in red.sensor_matrices]) / red.omega**2)
-        A = np.sqrt(max(ymax, 1e-300) / gain)
+        A = np.sqrt(max(rec.peak, 1e-300) / gain)
         self.amplitude = A
-        self._Dx = np.concatenate([A / red.omega, A * np.ones(m)])
-        self._Du = A * red.omega
         # Priors: initial modal state (weak, 1/omega) and the sign prior.
         p0 = ident.initial_load if initial_load is None else float(initial_load)
         if p0 == 0 or not np.isfinite(p0):
             raise InputError(f"initial_load = {p0!r}: expected a non-zero pressure (its sign fixes the sign)")
         peak = getattr(ident, "initial_deflection", 0.0) if initial_deflection is None else initial_deflection
         self.initial_load, self.initial_deflection = p0, float(peak)
-        f_prior = self.load_space.project(lambda x, yy: np.full_like(x, p0))
-        x_prior = np.zeros(2 * m)
-        q_prior = None
-        if self.initial_deflection != 0:
-            z0 = self.model.project(bubble(problem.width, problem.height, self.initial_deflection))
-            q_prior = red.to_modal(z0)
-            x_prior[:m] = q_prior
-        self.sign_prior = SignPrior(f_prior, q_prior)
-        self.x_prior = x_prior
-        self._set_state_prior(s.state_prior)
-        self._lift_scale = abs(p0) * problem.width * problem.height
+        sign_prior, x_prior = initial_priors(self.model, self.load_space, red, p0, self.initial_deflection)
         # Window geometry (seconds or samples, see MHESettings.samples).
         window, self.stride = s.samples(dt)
         self.N = min(window, K)
         self.stride = min(self.stride, self.N)
         blocks = window // self.stride if (s.load_model == "random_walk" and self.N == window) else 1
-        # The start-up (scan, lambda path, onset) treats the first window's load as constant; a
-        # random walk switches to its blocks afterwards (_first_window).
-        self._blocks = blocks
-        self.basis = red.window(self.N, 1)
-        self.B = 1
-        self._seg = max(3, int(round(s.consistency_segment_s / dt)))
-        self.bounds_points = self._bound_rows() if s.pressure_bounds else None
-        self._rw = None
-        self._rw_metric = l2_metric(red) if blocks > 1 else None
+        Dx, Du = np.concatenate([A / red.omega, A * np.ones(m)]), A * red.omega
+        self.window_prior = WindowPrior(red, self.load_space, s, self.N, self.stride, dt, blocks, Dx, Du)
+        lift_scale = abs(p0) * problem.width * problem.height
+        solvers = (self.solver, self._coarse_solver)
+        self.startup = StartUp(self.window_prior, rec, s, *solvers, sign_prior, x_prior, lift_scale)
         # History (per sample): modal forces, modal displacement, lift std.
         self._u = np.full((K, m), np.nan)
         self._q = np.full((K, m), np.nan)
         self._lift_std = np.full(K, np.nan)
         self._windows: list[dict] = []
-        self.restarts: list[dict] = []
-        self.onset: dict = {"samples_skipped": 0, "t_start": float(meas.t[0]), "attempts": []}
-        self.start = 0
         self._shift = self.stride
         # Warnings go into the result (info["warnings"]) for the workflow to report once; logging
         # them here as well printed them twice on the command line.
         self.warnings: list[str] = []
-        sol, report = self._first_window()
+        sol, report, self.start = self.startup.first_window(self.warnings)
         self.start_report = report
         if report.sign_score < SIGN_MARGIN:
             self.warnings.append(
@@ -217,23 +189,49 @@ class MovingHorizonEstimator(StartUp, WindowInformation):
         self._ready = True
         return self
 
-    # -- start-up and lambda -----------------------------------------------------------------
+    # -- what the window prior and the start-up own (read-only here) -----------------------
+    lam = _owned("startup", "lam", "The chosen lambda (the weight of the load's roughness).")
+    lambda_info = _owned("startup", "lambda_info", "How lambda was chosen (rule, path); empty when it was given.")
+    state_prior = _owned("startup", "state_prior", "The chosen relative std of the initial state's prior.")
+    x_prior = _owned("startup", "x_prior", "Prior initial modal state of the current estimate (start or restart).")
+    sign_prior = _owned("startup", "sign_prior", "Sign prior of the current estimate.")
+    onset = _owned("startup", "onset", "The record's onset: samples left out at its start, the attempts.")
+    restarts = _owned("startup", "restarts", "Where the estimate was started afresh (data inconsistent with it).")
+    bounds_points = _owned("window_prior", "bounds_points", "Modal forces to pressures at the bound points.")
+    state_prior_info = _owned("startup", "state_prior_info", "How the state prior was chosen (rule, evidence).")
+    scale = _owned("window_prior", "scale", "Scale of every unknown of a window (solved as theta / scale).")
+    dim = _owned("window_prior", "dim", "Number of unknowns of a window (initial state and B load blocks).")
+    B = _owned("window_prior", "B", "Load blocks of a window (1: constant load; the random walk's after start-up).")
+    basis = _owned("window_prior", "basis", "The window's response basis.")
+
+    def natural_lambda(self) -> float | None:
+        """Scale of lambda at which roughness and data information balance along the smoothest shape.
+
+        ``lambda_nat = (v^T H_data v) / (v^T S^-1 v)`` for the modal forces ``v`` of the smoothest
+        load shape, with ``H_data`` the data's Gauss–Newton matrix at the start-up estimate; the
+        lambda grid is relative to it. ``None`` when lambda was given (no path was computed).
+        """
+        return self.startup.natural_scale
+
+    def _window_problem(self, start: int, lam: float) -> WindowProblem:
+        """The window starting at sample ``start`` with the current arrival cost."""
+        return self.window_prior.problem(self.y, self.w, start, lam)
 
     # -- stepping ----------------------------------------------------------------------------
     def _accept(self, sol: WindowSolution, first: bool = False) -> None:
         """Record a window's answer in the histories."""
-        red = self.reduced
-        m, B, N = red.m, self.B, self.N
+        red, wp = self.reduced, self.window_prior
+        m, B, N = red.m, wp.B, self.N
         self._sol = sol
         theta = sol.theta
-        Q = red.modal_trajectory(self.basis, theta)
+        Q = red.modal_trajectory(wp.basis, theta)
         window = slice(self.start, self.start + N)
         w = self.w[window]
         chi2 = float(np.sum(w * (self.y[window] - red.outputs(Q)) ** 2))
         U = theta[2 * m :].reshape(B, m)
-        L = self.basis.block_length
+        L = wp.basis.block_length
         block_of = np.minimum(np.arange(N) // L, B - 1)
-        lift_std = self._lift_band(sol.hessian)
+        lift_std = wp.lift_band(sol.hessian, self.lam)
         new = slice(self.start, self.start + N) if first else slice(self.start + N - self._shift, self.start + N)
         idx = np.arange(N)[new.start - self.start : new.stop - self.start]
         self._u[new] = U[block_of[idx]]
@@ -260,8 +258,10 @@ class MovingHorizonEstimator(StartUp, WindowInformation):
         if end >= self.K:
             return False
         shift = min(self.stride, self.K - end)
-        self._absorb(shift)
-        m, B = self.reduced.m, self.B
+        # The samples leaving the window go into the arrival cost (linearised at its optimum).
+        self.window_prior.absorb(self._window_problem(self.start, self.lam), self._sol.theta, shift)
+        self._shift = shift
+        m, B = self.reduced.m, self.window_prior.B
         # Warm start: the previous optimum propagated over `shift` samples.
         theta = self._sol.theta
         Fs, Gs = self.reduced.transition(shift)
@@ -277,8 +277,13 @@ class MovingHorizonEstimator(StartUp, WindowInformation):
         problem = self._window_problem(self.start, self.lam)
         sol = self._step_solver.solve(problem, theta0)
         if self.settings.consistency:
-            k = first_inconsistent(self._profile(sol.theta, self.start, self._level))
-            if k is not None and self._restart(self.start + k, sol.theta):
+            k = first_inconsistent(self.startup.profile(sol.theta, self.start, level=self.startup.level))
+            # Data that contradict the estimate: start afresh there (the start-up, lambda kept).
+            new = None if k is None else self.startup.restart(self.start + k, sol.theta, self.start)
+            if new is not None:
+                self.start, sol = new
+                self._shift = self.stride
+                self._accept(sol, first=True)
                 return True
         self._accept(sol)
         return True

@@ -26,11 +26,13 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
+from wingopt.estimation.load_space import LoadSpace
 from wingopt.estimation.mhe.model import MHEModel
 from wingopt.estimation.mhe.solvers import WindowSolution, WindowSolver
 from wingopt.estimation.mhe.window import WindowProblem
+from wingopt.membrane import MembraneModel, bubble
 
-__all__ = ["SignPrior", "sign_score", "smooth_load_shapes", "start_window", "StartReport"]
+__all__ = ["SignPrior", "initial_priors", "sign_score", "smooth_load_shapes", "start_window", "StartReport"]
 
 log = logging.getLogger(__name__)
 
@@ -49,6 +51,38 @@ class SignPrior:
 
     load: np.ndarray
     deflection_modal: np.ndarray | None = None
+
+
+def initial_priors(
+    model: MembraneModel, load_space: LoadSpace, reduced: MHEModel, initial_load: float, initial_deflection: float
+) -> tuple[SignPrior, np.ndarray]:
+    """Sign prior and prior initial modal state of a record's start.
+
+    Parameters
+    ----------
+    model : MembraneModel
+    load_space : LoadSpace
+    reduced : MHEModel
+    initial_load : float
+        Prior load (Pa), uniform; its sign fixes the estimate's sign.
+    initial_deflection : float
+        Peak (m) of the prior initial bubble; ``0``: unknown (the prior state is rest).
+
+    Returns
+    -------
+    tuple
+        ``(SignPrior, x_prior)``: the prior modal state holds the bubble's modal displacements.
+    """
+    m = reduced.m
+    f_prior = load_space.project(lambda x, yy: np.full_like(x, initial_load))
+    x_prior = np.zeros(2 * m)
+    q_prior = None
+    if initial_deflection != 0:
+        problem = model.problem
+        z0 = model.project(bubble(problem.width, problem.height, initial_deflection))
+        q_prior = reduced.to_modal(z0)
+        x_prior[:m] = q_prior
+    return SignPrior(f_prior, q_prior), x_prior
 
 
 def sign_score(reduced: MHEModel, theta: np.ndarray, prior: SignPrior) -> float:

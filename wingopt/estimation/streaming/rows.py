@@ -22,8 +22,9 @@ the stretch): the same three members (``dim``, ``p``, ``row_data``, ``evaluate``
 fixed origin for hours: ``evaluate`` integrates the window from a *window-start* state with
 sensitivities, and the estimator then needs the batch's anchor shift (``shift(theta, s)``: the
 state transition over ``s`` samples and its Jacobian, to propagate the arrival cost with a process
-noise and marginalise the old state, as :meth:`MovingHorizonEstimator._absorb` does). That shift
-is not implemented here (the linear model never needs it).
+noise and marginalise the old state, as
+:meth:`~wingopt.estimation.mhe.information.WindowPrior.absorb` does). That shift is not
+implemented here (the linear model never needs it).
 """
 
 from __future__ import annotations
