@@ -100,9 +100,20 @@ class _Probe(MovingHorizonEstimator):
         self.reduced = MHEModel.build(model, load_space, settings.modes)
         self.evidence = []
 
-    def _path_point(self, problem, sol, lam):  # noqa: D102 - instance override of the staticmethod
-        self.evidence.append(laplace_log_evidence(problem, sol.theta, lam))
-        return MovingHorizonEstimator._path_point(problem, sol, lam)
+    def setup(self, *args, **kwargs):  # noqa: D102 - records every point of the lambda path
+        from wingopt.estimation.mhe import lambda_path
+
+        plain = lambda_path.path_point
+
+        def point(problem, sol, lam):
+            self.evidence.append(laplace_log_evidence(problem, sol.theta, lam))
+            return plain(problem, sol, lam)
+
+        lambda_path.path_point = point
+        try:
+            return super().setup(*args, **kwargs)
+        finally:
+            lambda_path.path_point = plain
 
 
 class CleanCases:
