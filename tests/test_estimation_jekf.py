@@ -154,7 +154,7 @@ def test_the_estimate_follows_the_sign_of_the_prior(coarse, l1_case):
         coarse.problem, identification=dataclasses.replace(coarse.problem.identification, initial_deflection=0.0)
     )
     ekf = JointEKF(MembraneModel.from_problem(blind), JEKFSettings.tuned(sign_prior=-50.0))
-    assert ekf.initial_peak == -0.01
+    assert ekf.prior.initial_peak == -0.01
 
 
 def test_results_are_reproducible(coarse, membrane_problem):

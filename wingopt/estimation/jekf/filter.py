@@ -48,7 +48,7 @@ __all__ = ["JEKFSettings", "JointEKF", "joint_transition"]
 log = logging.getLogger(__name__)
 
 
-class JointEKF(JointPrior):
+class JointEKF:
     """Step-able joint EKF on the membrane (``setup`` / ``step`` / ``run``).
 
     Parameters
@@ -77,6 +77,7 @@ class JointEKF(JointPrior):
         self.dt = float(model.problem.identification.dt if dt is None else dt)
         _as_positive("dt", self.dt)
         self.n = model.n
+        self.prior = JointPrior(model, self.settings)  # initial covariance and guess
         self.sensors = model.sensors
         self.p = len(self.sensors)
         s = self.settings
@@ -175,12 +176,12 @@ class JointEKF(JointPrior):
         measurement_variance: float | np.ndarray | None = None,
         t0: float = 0.0,
     ) -> JointEKF:
-        """Initialise mean and covariance at time ``t0`` (defaults from :meth:`initial_guess`).
+        """Initialise mean and covariance at time ``t0`` (defaults from ``prior.initial_guess()``).
 
         ``measurement_variance`` overrides the settings' ``R`` (needed when the settings say
         ``None``, i.e. "from the data": :meth:`run` fills it from the measurements).
         """
-        z0, v0, f0 = self.initial_guess()
+        z0, v0, f0 = self.prior.initial_guess()
         z0 = z0 if initial_deflection is None else self._vector("initial_deflection", initial_deflection)
         v0 = v0 if initial_velocity is None else self._vector("initial_velocity", initial_velocity)
         f0 = f0 if initial_load is None else self._vector("initial_load", initial_load)
@@ -198,7 +199,9 @@ class JointEKF(JointPrior):
         eye = np.eye(self.n)
         self.x = self._state_from_physical(z0, v0, f0)
         self.P = np.ascontiguousarray(
-            self._block_covariance(s.deflection_std**2 * eye, s.velocity_std**2 * eye, self.prior_load_covariance())
+            self._block_covariance(
+                s.deflection_std**2 * eye, s.velocity_std**2 * eye, self.prior.prior_load_covariance()
+            )
         )
         self._work = (np.empty_like(self.P), np.empty_like(self.P))
         self.t = float(t0)

@@ -2,7 +2,7 @@
 
 ``P0_d = (P0d_tilde^-1 + lambda Lam)^-1`` on the load block only, the uniform prior load
 (``initial_load``) and the seed's initial bubble, whose sign fixes the sign of the estimate.
-Mixed into :class:`~wingopt.estimation.jekf.filter.JointEKF`.
+Held by :class:`~wingopt.estimation.jekf.filter.JointEKF` (``ekf.prior``).
 """
 
 from __future__ import annotations
@@ -13,16 +13,28 @@ import numpy as np
 import scipy.linalg as sla
 
 from wingopt.errors import SolverError
-from wingopt.estimation.jekf.settings import DEFAULT_PEAK
+from wingopt.estimation.jekf.settings import DEFAULT_PEAK, JEKFSettings
 from wingopt.membrane.loads import bubble
+from wingopt.membrane.model import MembraneModel
 
 __all__ = ["JointPrior"]
 
 
 class JointPrior:
-    """Initial covariance and guess of the joint state (mixin of :class:`JointEKF`)."""
+    """Initial covariance and guess of the joint state.
 
-    # -- prior -------------------------------------------------------------------------------
+    Parameters
+    ----------
+    model : MembraneModel
+        The filter's model (the prior is in its load and deflection coefficients).
+    settings : JEKFSettings
+        ``regularization``, ``load_std``, ``initial_load``, ``initial_peak`` and ``sign_prior`` are read.
+    """
+
+    def __init__(self, model: MembraneModel, settings: JEKFSettings) -> None:
+        self.model, self.settings = model, settings
+        self.n = model.n
+
     def prior_load_covariance(self) -> np.ndarray:
         """``P0_d = (P0d_tilde^-1 + lambda Lam)^-1`` in load coefficients (eq. 6.46), dense ``(n, n)``."""
         s = self.settings
