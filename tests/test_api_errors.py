@@ -231,6 +231,7 @@ CASES = [
     ("calibrate_membrane(noise_std=1e308)", lambda t: _calibrate(noise_std=1e308), ["noise_std"]),
     ("calibrate_membrane(release_peak=nan)", lambda t: _calibrate(release_peak=NAN), ["release_peak"]),
     ("calibrate_membrane(data=dir)", lambda t: _calibrate(data=t), ["directory"]),
+    ("calibrated_problem(None)", lambda t: wo.calibrated_problem(None), ["run", "CalibrationRun"]),
     ("Measurements(complex t)", lambda t: _measurements(np.arange(3) * 1j, np.ones((3, 1))), ["t"]),
     ("Measurements(shapes)", lambda t: _measurements(np.arange(10.0), np.ones((7, 1))), ["t", "values"]),
     ("Measurements(names str)", lambda t: _measurements(np.arange(3.0), np.ones((3, 1)), "S1"), ["sensor_names"]),

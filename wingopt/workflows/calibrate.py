@@ -153,8 +153,21 @@ def calibrate_membrane(
 
 
 def calibrated_problem(run: CalibrationRun):
-    """The problem with the calibration's posterior as its ``[identification]`` prior: in memory, the
-    values :func:`calibrated_problem_text` writes (``identify`` on either gives the same answer)."""
+    """The problem with the calibration's posterior as its ``[identification]`` prior.
+
+    Parameters
+    ----------
+    run : CalibrationRun
+        From :func:`calibrate_membrane`.
+
+    Returns
+    -------
+    MembraneProblem
+        In memory, with the values :func:`calibrated_problem_text` writes (``identify`` on either
+        gives the same answer).
+    """
+    if not isinstance(run, CalibrationRun):
+        raise InputError(f"run = {type(run).__name__}: expected the CalibrationRun of calibrate_membrane")
     ident = _calibrated_fields(run)
     ident["prestrain"], ident["prestrain_std"] = tuple(ident["prestrain"]), tuple(ident["prestrain_std"])
     return run.problem.with_identification(**ident)
