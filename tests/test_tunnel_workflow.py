@@ -71,3 +71,18 @@ def test_the_calibrated_file_with_a_declared_aerodynamic_load_gives_the_lift(cal
     assert abs(lift - TRUE_LIFT) <= 2 * band
     assert "tension" not in r.stderr
     assert (tmp_path / "run" / "misfit.png").is_file()  # a steady record's figure: the sensors' means and the fit
+
+
+def test_with_identification_sets_what_a_problem_file_would_and_refuses_the_rest():
+    from wingopt.errors import InputError
+
+    p = load_problem("membrane")
+    q = p.with_identification(pressure_prior="aerodynamic", leading_edge="x1")
+    assert (q.identification.pressure_prior, q.identification.leading_edge) == ("aerodynamic", "x1")
+    assert p.identification.pressure_prior == "auto"  # a new problem; the original is unchanged
+    with pytest.raises(InputError, match="identification.pressure_priors: unknown field"):
+        p.with_identification(pressure_priors="frame")
+    with pytest.raises(InputError, match="identification.pressure_prior = 'wing'"):
+        p.with_identification(pressure_prior="wing")
+    with pytest.raises(InputError, match="identification.leading_edge = 'le'"):
+        p.with_identification(leading_edge="le")
