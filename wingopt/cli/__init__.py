@@ -19,6 +19,8 @@ import pkgutil
 import re
 import signal
 import sys
+import threading
+from pathlib import Path
 
 from wingopt import __version__
 from wingopt.errors import InputError, SolverError
@@ -155,6 +157,9 @@ def _configure_logging(args) -> None:
     root.addHandler(handler)
     root.setLevel(max(level, logging.WARNING))  # other libraries: warnings and errors only
     logging.getLogger("wingopt").setLevel(level)
+    # Stage lines and time estimates (wingopt.progress): shown unless --quiet, terminal or not.
+    progress_level = logging.ERROR if level >= logging.ERROR else min(level, logging.INFO)
+    logging.getLogger("wingopt.progress").setLevel(progress_level)
 
 
 class Terminated(BaseException):
@@ -190,6 +195,69 @@ def _install_handlers() -> dict:
     return old
 
 
+THREADED = frozenset({"morph", "identify", "demo", "modes", "gains", "calibrate", "design-sensors", "dic-sensors"})
+"""Commands whose work runs in a worker thread while the main thread waits for signals: a signal
+arriving inside a long C call (a sparse factorisation) is honoured at once instead of when the call
+returns. The others (``compare``, ``sweep``: a dask client; ``follow``: its own handlers) run in the
+main thread, where their waits are interruptible anyway."""
+
+
+def _in_thread(args):
+    """``args.func(args)`` in a worker thread; the main thread waits, so signals reach it at once.
+
+    On SIGINT/SIGTERM/SIGHUP the worker is abandoned: the temporary output directories this
+    process made next to ``--out`` are removed (nothing half-written is left behind) and the
+    exception propagates; :func:`main` then ends the process without waiting for the worker.
+    """
+    box: dict = {}
+
+    def target():
+        try:
+            box["rc"] = args.func(args)
+        except BaseException as exc:  # handed to the main thread
+            box["exc"] = exc
+
+    worker = threading.Thread(target=target, name=f"wingopt {args.command}", daemon=True)
+    worker.start()
+    try:
+        while worker.is_alive():
+            worker.join(0.05)
+    except BaseException:
+        if worker.is_alive():
+            _ABANDONED.append(worker)
+            _remove_own_temporaries(getattr(args, "out", None))
+        raise
+    if "exc" in box:
+        raise box["exc"]
+    return box.get("rc")
+
+
+_ABANDONED: list[threading.Thread] = []  # worker threads left running by an interrupted command
+
+
+def _remove_own_temporaries(out) -> None:
+    """Remove the temporary directories this process made for ``out`` (``.NAME.tmp-PID-*``)."""
+    import shutil
+
+    if not out or str(out) == "-":
+        return
+    target = Path(out).expanduser().absolute()
+    pattern = f".{target.name}.tmp-{os.getpid()}-*"
+    for _ in range(3):  # the worker may still be writing into one: sweep again
+        for tmp in target.parent.glob(pattern):
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _exit_now(code: int) -> None:
+    """End the process with ``code`` without waiting for an abandoned worker thread."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``wingopt`` console script; returns the exit code.
 
@@ -202,11 +270,24 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return EXIT_INPUT
     _configure_logging(args)
-    name = f"wingopt {args.command}"
     _RECEIVED.clear()
     old = _install_handlers()
+    _ABANDONED.clear()
+    threaded = args.command in THREADED and threading.current_thread() is threading.main_thread() and bool(old)
     try:
-        return int(args.func(args) or EXIT_OK)
+        rc = _run(args, threaded)
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+    if _ABANDONED and any(t.is_alive() for t in _ABANDONED):
+        _exit_now(rc)
+    return rc
+
+
+def _run(args, threaded: bool) -> int:
+    name = f"wingopt {args.command}"
+    try:
+        return int((_in_thread(args) if threaded else args.func(args)) or EXIT_OK)
     except InputError as exc:
         _say(f"{name}: error: {exc}")
         return EXIT_INPUT
@@ -244,9 +325,6 @@ def main(argv: list[str] | None = None) -> int:
             raise
         _say(f"{name}: internal error: {type(exc).__name__}: {exc}; please report it")
         return EXIT_INTERNAL
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
 
 
 def _say(line: str) -> None:

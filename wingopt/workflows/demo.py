@@ -15,7 +15,6 @@ self-contained ``report.html``.
 from __future__ import annotations
 
 import platform
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,11 +22,12 @@ from pathlib import Path
 from wingopt import __version__
 from wingopt.errors import InputError
 from wingopt.estimation.options import IdentifyOptions
+from wingopt.progress import Stages
 from wingopt.results import ResultDirectory, write_json
 from wingopt.results.report import Report
 from wingopt.workflows.demo_real import REAL_MODELS, REAL_PRESTRAIN, real_rows, real_section, run_real_membrane
 
-__all__ = ["DemoConfig", "run_demo", "SEED_TABLE_5_4", "SEED_TABLE_6_2", "SEED_JEKF_1PCT"]
+__all__ = ["DemoConfig", "run_demo", "overlay", "stage_costs", "SEED_TABLE_5_4", "SEED_TABLE_6_2", "SEED_JEKF_1PCT"]
 
 SHAPES = ("twist", "camber", "bending")
 LOADS = ("L1", "L2", "L3")
@@ -58,12 +58,26 @@ class DemoConfig:
         return cls(plate_nodes=(7, 31), t_end=0.5, identify_t_end=0.5, jekf_modes=30, real_truth_nodes=(33, 17))
 
 
-def _progress(total: int, enabled: bool | None):
-    from tqdm.auto import tqdm
+def stage_costs(cfg: DemoConfig) -> list[tuple[str, float]]:
+    """The demo's stages in order, each with its a-priori cost (CPU seconds measured on one core
+    for the full and the quick configuration; the progress lines rescale them as stages finish)."""
+    quick = cfg.plate_nodes[0] * cfg.plate_nodes[1] <= 7 * 31
+    stages: list[tuple[str, float]] = []
+    for shape in SHAPES:
+        stages += [(f"morph {shape}: QP", 3.0 if quick else 8.0)]
+        stages += [(f"morph {shape}: saturated LQR", 1.0 if quick else 4.0)]
+        stages += [(f"morph {shape}: seed LQR (unlimited)", 1.0 if quick else 4.0)]
+    for load in LOADS:
+        for method in IDENTIFY_METHODS:
+            cost = {"mhe": 2.0, "jekf-seed": 4.0, "jekf-tuned": 2.0}[method] * (1.0 if quick else 2.0)
+            stages.append((f"identify {load}: {method}", cost))
+    if cfg.real_membrane:
+        stages += [(f"real membrane: {m}", 4.0 if quick else 10.0) for m in REAL_MODELS]
+    stages.append(("reference tables", 1.0))
+    return stages
 
-    if enabled is None:
-        enabled = sys.stderr.isatty()
-    return tqdm(total=total, disable=not enabled, desc="wingopt demo", unit="step", leave=False)
+
+IDENTIFY_METHODS = ("mhe", "jekf-seed", "jekf-tuned")
 
 
 def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = None, progress: bool | None = None):
@@ -76,7 +90,9 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
     config : DemoConfig, optional
         Meshes, durations, loads (default: the full demo).
     progress : bool, optional
-        Show a progress bar (default: when writing to a terminal).
+        ``False``: no stage lines. Otherwise each stage is announced, with the time so far and an
+        estimate of the rest, on the ``wingopt.progress`` logger (:mod:`wingopt.progress`: the
+        command line shows it on stderr; a library caller sees it once logging is configured).
 
     Returns
     -------
@@ -99,22 +115,22 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
     plate = load_problem("plate")
     membrane = load_problem("membrane")
     summary: dict = {"version": __version__, "config": cfg.__dict__, "morph": {}, "identify": {}, "tables": {}}
-    bar = _progress(len(SHAPES) * 3 + len(LOADS) * 3 + 2 + len(REAL_MODELS) * cfg.real_membrane, progress)
+    costs = stage_costs(cfg)
+    stages = Stages([c for _, c in costs], "wingopt demo" + (" --quick" if cfg == DemoConfig.quick() else ""),
+                    seconds=True, enabled=progress is not False)  # fmt: skip
     with writer as tmp:
         # -- 1. morphing ----------------------------------------------------------------------
         for shape in SHAPES:
-            bar.set_description(f"morph {shape}: QP")
+            stages.start(f"morph {shape}: QP")
             qp = morph(plate, shape, "qp", t_end=cfg.t_end, nodes=cfg.plate_nodes)
-            bar.update()
-            bar.set_description(f"morph {shape}: saturated LQR")
+            stages.start(f"morph {shape}: saturated LQR")
             lo, hi = qp.vmin, qp.vmax
             lqr_sat = morph(plate, shape, "lqr", vmin=lo, vmax=hi, t_end=cfg.t_end, nodes=cfg.plate_nodes)
-            bar.update()
-            bar.set_description(f"morph {shape}: seed LQR (unlimited)")
+            stages.start(f"morph {shape}: seed LQR (unlimited)")
             lqr_free = morph(plate, shape, "lqr", t_end=cfg.t_end, nodes=cfg.plate_nodes)
-            bar.update()
             write_morph_outputs(qp, tmp / "morph" / shape, compare_with=lqr_sat)
-            write_morph_outputs(lqr_free, tmp / "morph" / f"{shape}-lqr-unlimited")
+            # The report shows the QP's figures; the unlimited LQR's run keeps its data, not its figures.
+            write_morph_outputs(lqr_free, tmp / "morph" / f"{shape}-lqr-unlimited", plots=False)
             summary["morph"][shape] = {
                 "qp": qp.summary(),
                 "lqr_saturated": lqr_sat.summary(),
@@ -123,9 +139,10 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
         # -- 2. load identification -------------------------------------------------------------
         for load in LOADS:
             summary["identify"][load] = {}
-            for method in ("mhe", "jekf-seed", "jekf-tuned"):
-                bar.set_description(f"identify {load}: {method}")
-                run = identify(
+            runs = {}
+            for method in IDENTIFY_METHODS:
+                stages.start(f"identify {load}: {method}")
+                run = runs[method] = identify(
                     membrane,
                     load=load,
                     noise_percent=100 * cfg.noise,
@@ -136,19 +153,18 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
                 )
                 write_identify_outputs(run, tmp / "identify" / f"{load}-{method}", plots=(method == "mhe"))
                 summary["identify"][load][method] = run.summary()
-                bar.update()
+            overlay(runs, tmp / "identify" / f"{load}-mhe-vs-jekf.png", f"{load}, {100 * cfg.noise:g} % noise")
         # -- 2b. a real membrane: FvK truth, prestrain off the file's ---------------------------------
         if cfg.real_membrane:
-            summary["real_membrane"] = run_real_membrane(membrane, cfg, tmp / "real-membrane", bar)
+            summary["real_membrane"] = run_real_membrane(membrane, cfg, tmp / "real-membrane", stages.start)
         # -- 3. reference tables -----------------------------------------------------------------
-        bar.set_description("reference tables")
+        stages.start("reference tables")
         mem = MembraneModel.from_problem(membrane, (25, 13))
         summary["tables"]["membrane_6_2"] = {
             "mesh": [25, 13],
             "ours": mem.frequencies_hz(4),
             "seed": SEED_TABLE_6_2[(25, 13)],
         }
-        bar.update()
         pm = PlateModel.from_problem(plate, cfg.plate_nodes)
         seed_plate = SEED_TABLE_5_4.get(tuple(cfg.plate_nodes))
         summary["tables"]["plate_5_4"] = {
@@ -156,12 +172,36 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
             "ours": pm.frequencies_hz(4),
             "seed": seed_plate,
         }
-        bar.update()
         summary["wall_s"] = time.perf_counter() - t_start
         write_json(tmp / "summary.json", summary)
         _report(tmp, summary, cfg).write(tmp / "report.html")
-    bar.close()
+    stages.finish()
     return summary
+
+
+def overlay(runs: dict, path: Path, title: str = "") -> Path | None:
+    """The MHE's and the JEKF's lift histories with their bands and the truth on one plot (``path``).
+
+    ``runs``: :class:`~wingopt.workflows.identify.IdentifyRun` by method; the MHE and each JEKF
+    present are drawn. Returns ``path`` (``None`` when fewer than two estimators are given).
+    """
+    from wingopt.plots.identify import plot_overlay
+
+    names = {"mhe": "MHE", "jekf-tuned": "tuned JEKF", "jekf-seed": "seed JEKF", "jekf": "JEKF"}
+    curves = [
+        (names.get(m, m), r.result.t, r.result.lift, r.result.lift_std)
+        for m, r in runs.items()
+        if m in names and r is not None
+    ]
+    if len(curves) < 2:
+        return None
+    case = next((r.case for r in runs.values() if r is not None and r.case is not None), None)
+    truth_t = truth = None
+    if case is not None:
+        truth_t, truth = case.trajectory.t, case.lift_history
+    path.parent.mkdir(parents=True, exist_ok=True)
+    plot_overlay(path, curves, truth_t, truth, title)
+    return path
 
 
 # -- report ---------------------------------------------------------------------------------------
@@ -279,6 +319,9 @@ def _report(tmp: Path, summary: dict, cfg: DemoConfig) -> Report:
         "Final relative L2 load error (lower is better)",
     )  # fmt: skip
     for load in summary["identify"]:
+        over = tmp / "identify" / f"{load}-mhe-vs-jekf.png"
+        if over.exists():
+            rep.figure(over, f"{load}: lift of the MHE and the JEKFs with their 1-sigma bands, and the truth")
         d = tmp / "identify" / f"{load}-mhe"
         for name, cap in (("load_field.png", "estimated vs true load"), ("lift.png", "lift history (1-sigma band)"),
                           ("errors.png", "error histories")):  # fmt: skip

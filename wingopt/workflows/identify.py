@@ -389,12 +389,9 @@ def _plots(tmp: Path, run: IdentifyRun, X, Y, Pg) -> None:
 
         plot_sensor_means(tmp / "misfit.png", result.info, run.model.problem.sensor_names, title)
     if case is not None:
-        # Error histories on a subsample of the times (each needs two integrals on the truth mesh).
+        # Error histories on a subsample of the times (each mesh's basis evaluated once for all of them).
+        from wingopt.plots.identify import error_histories
+
         idx = np.unique(np.linspace(0, result.t.size - 1, 41).astype(int))
-        t_case = case.trajectory.t
-        le, de = [], []
-        for k in idx:
-            kt = int(np.argmin(np.abs(t_case - result.t[k])))
-            le.append(case.load_error(run.load_field(k)))
-            de.append(case.deflection_error(run.model.field(result.deflection[k]), kt))
-        plot_errors(tmp / "errors.png", result.t[idx], np.array(le), np.array(de), title, first)
+        le, de = error_histories(case, result, run.model, idx)
+        plot_errors(tmp / "errors.png", result.t[idx], le, de, title, first)

@@ -1,0 +1,118 @@
+"""Stage lines with a time estimate, through :mod:`logging` (the engines stay quiet).
+
+A workflow that runs several stages (the demo's runs, a study's tasks, an identification's
+steps) announces each one on the ``wingopt.progress`` logger::
+
+    [3/17] identify L1: mhe (12 s so far, about 40 s left)
+
+The command line shows these lines on stderr, as plain lines whether or not stderr is a
+terminal (a pipe, a file, CI, ``nohup``), unless ``--quiet``; a library user sees nothing unless
+they configure logging (``logging.getLogger("wingopt.progress").setLevel("INFO")`` and a
+handler). The estimate of what is left is the stages' own a-priori costs (seconds, or any unit
+in proportion), scaled by how long the stages done so far took against their costs.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Sequence
+
+__all__ = ["Stages", "LOGGER", "fmt_duration"]
+
+LOGGER = "wingopt.progress"
+"""The logger the stage lines go to (the CLI shows it at INFO unless ``--quiet``)."""
+
+
+def fmt_duration(seconds: float) -> str:
+    """``"40 s"``, ``"3.2 min"``, ``"1.5 h"``, ``"2.1 days"``."""
+    if seconds >= 86400:
+        return f"{seconds / 86400:.2g} days"
+    if seconds >= 3600:
+        return f"{seconds / 3600:.2g} h"
+    if seconds >= 90:
+        return f"{seconds / 60:.2g} min"
+    return f"{seconds:.0f} s"
+
+
+class Stages:
+    """Announce the stages of one run, each with the elapsed time and an estimate of the rest.
+
+    Parameters
+    ----------
+    costs : sequence of float
+        A-priori cost of every stage, in order (seconds, or any unit in proportion: the estimate
+        rescales them by the time the finished stages took).
+    what : str
+        Name of the run (the first and last lines).
+    seconds : bool
+        ``costs`` are seconds (the first line then says how long the whole run should take).
+    logger : logging.Logger, optional
+        Default the ``wingopt.progress`` logger.
+    clock : callable, optional
+        Seconds now (default :func:`time.perf_counter`; tests pass a fake clock).
+    enabled : bool
+        ``False``: log nothing (the lines are still kept in :attr:`lines`).
+
+    Examples
+    --------
+    >>> st = Stages([1.0, 3.0], "demo")          # doctest: +SKIP
+    >>> st.start("morph twist")                  # doctest: +SKIP
+    >>> st.start("identify L1")                  # doctest: +SKIP
+    >>> st.finish()                              # doctest: +SKIP
+    """
+
+    def __init__(
+        self,
+        costs: Sequence[float],
+        what: str = "run",
+        *,
+        seconds: bool = False,
+        logger: logging.Logger | None = None,
+        clock: Callable[[], float] | None = None,
+        enabled: bool = True,
+    ) -> None:
+        self.costs = [max(float(c), 0.0) for c in costs]
+        self.what = what
+        self.log = logger or logging.getLogger(LOGGER)
+        self.clock = clock or time.perf_counter
+        self.t0 = self.clock()
+        self.index = 0  # stages started
+        self.lines: list[str] = []
+        self.enabled = bool(enabled)
+        self.seconds = bool(seconds)
+        total = sum(self.costs)
+        if seconds and total > 0:
+            self._say(f"{what}: {len(self.costs)} stages, about {fmt_duration(total)}")
+        else:
+            self._say(f"{what}: {len(self.costs)} stages")
+
+    def _say(self, line: str) -> None:
+        self.lines.append(line)
+        if self.enabled:
+            self.log.info("%s", line)
+
+    def remaining(self) -> float | None:
+        """Estimated seconds left, the current stage included (before the first stage ends: the a-priori
+        costs when they are seconds, else ``None``)."""
+        done = sum(self.costs[: max(self.index - 1, 0)])
+        if self.index <= 1 or done <= 0:
+            return sum(self.costs[max(self.index - 1, 0) :]) if self.seconds else None
+        elapsed = self.clock() - self.t0
+        return elapsed * sum(self.costs[self.index - 1 :]) / done
+
+    def start(self, label: str) -> None:
+        """The next stage begins: one line ``[k/n] label (elapsed, about ... left)``."""
+        self.index += 1
+        elapsed = self.clock() - self.t0
+        left = self.remaining()
+        when = f"{fmt_duration(elapsed)} so far"
+        if left is not None:
+            when += f", about {fmt_duration(left)} left"
+        self._say(f"[{self.index}/{len(self.costs)}] {label} ({when})")
+
+    def finish(self) -> float:
+        """The run is done: one line with its total time; returns the seconds it took."""
+        elapsed = self.clock() - self.t0
+        self._say(f"{self.what}: done in {fmt_duration(elapsed)}")
+        return elapsed
