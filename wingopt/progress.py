@@ -77,7 +77,8 @@ class Stages:
         self.log = logger or logging.getLogger(LOGGER)
         self.clock = clock or time.perf_counter
         self.t0 = self.clock()
-        self.index = 0  # stages started
+        self.index = 0  # stages started (sequential use: ``start``)
+        self.finished: set[int] = set()  # stages finished (side-by-side use: ``done``)
         self.lines: list[str] = []
         self.enabled = bool(enabled)
         self.seconds = bool(seconds)
@@ -93,23 +94,34 @@ class Stages:
             self.log.info("%s", line)
 
     def remaining(self) -> float | None:
-        """Estimated seconds left, the current stage included (before the first stage ends: the a-priori
-        costs when they are seconds, else ``None``)."""
-        done = sum(self.costs[: max(self.index - 1, 0)])
-        if self.index <= 1 or done <= 0:
-            return sum(self.costs[max(self.index - 1, 0) :]) if self.seconds else None
-        elapsed = self.clock() - self.t0
-        return elapsed * sum(self.costs[self.index - 1 :]) / done
+        """Estimated seconds left: the cost not yet done, scaled by the time the done part took
+        (before any is done: the a-priori costs when they are seconds, else ``None``)."""
+        done = self._done_cost()
+        left = sum(self.costs) - done
+        if done <= 0:
+            return left if self.seconds else None
+        return (self.clock() - self.t0) * left / done
+
+    def _done_cost(self) -> float:
+        if self.finished:
+            return sum(self.costs[i] for i in self.finished)
+        return sum(self.costs[: max(self.index - 1, 0)])
+
+    def _when(self) -> str:
+        left = self.remaining()
+        when = f"{fmt_duration(self.clock() - self.t0)} so far"
+        return when + (f", about {fmt_duration(left)} left" if left is not None else "")
 
     def start(self, label: str) -> None:
-        """The next stage begins: one line ``[k/n] label (elapsed, about ... left)``."""
+        """The next stage begins (stages run one after the other): ``[k/n] label (elapsed, about ... left)``."""
         self.index += 1
-        elapsed = self.clock() - self.t0
-        left = self.remaining()
-        when = f"{fmt_duration(elapsed)} so far"
-        if left is not None:
-            when += f", about {fmt_duration(left)} left"
-        self._say(f"[{self.index}/{len(self.costs)}] {label} ({when})")
+        self._say(f"[{self.index}/{len(self.costs)}] {label} ({self._when()})")
+
+    def done(self, index: int, label: str) -> None:
+        """Stage ``index`` (0-based) has finished (stages that run side by side, in any order):
+        ``[k/n] done: label (elapsed, about ... left)``, ``k`` the stages finished so far."""
+        self.finished.add(int(index))
+        self._say(f"[{len(self.finished)}/{len(self.costs)}] done: {label} ({self._when()})")
 
     def finish(self) -> float:
         """The run is done: one line with its total time; returns the seconds it took."""

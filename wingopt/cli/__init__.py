@@ -195,11 +195,15 @@ def _install_handlers() -> dict:
     return old
 
 
-THREADED = frozenset({"morph", "identify", "demo", "modes", "gains", "calibrate", "design-sensors", "dic-sensors"})
-"""Commands whose work runs in a worker thread while the main thread waits for signals: a signal
-arriving inside a long C call (a sparse factorisation) is honoured at once instead of when the call
-returns. The others (``compare``, ``sweep``: a dask client; ``follow``: its own handlers) run in the
-main thread, where their waits are interruptible anyway."""
+SUPERVISED = frozenset({"morph", "identify", "demo", "modes", "gains"})
+"""Commands whose work may sit in one long C call (a sparse factorisation, a dense Riccati or
+eigen-decomposition that holds the interpreter's lock for minutes). Run from the console script
+they run in a child process that the main process watches: a signal ends the child at once, its
+temporary output directories are removed and the main process reports it (within a second,
+whatever the child is doing). Called in-process (``main([...])``, tests), they run in a worker
+thread instead (signals are then honoured at once except inside a call that holds the lock).
+The others (``compare``, ``sweep``: a dask client; ``follow``: its own handlers; ``calibrate``,
+``design-sensors``: their ``--write-problem`` files) run in the main thread."""
 
 
 def _in_thread(args):
@@ -235,17 +239,62 @@ def _in_thread(args):
 _ABANDONED: list[threading.Thread] = []  # worker threads left running by an interrupted command
 
 
-def _remove_own_temporaries(out) -> None:
-    """Remove the temporary directories this process made for ``out`` (``.NAME.tmp-PID-*``)."""
+def _remove_own_temporaries(out, pid: int | None = None) -> None:
+    """Remove the temporary directories process ``pid`` (default this one) made for ``out``
+    (``.NAME.tmp-PID-*``, :class:`~wingopt.results.ResultDirectory`)."""
     import shutil
 
     if not out or str(out) == "-":
         return
     target = Path(out).expanduser().absolute()
-    pattern = f".{target.name}.tmp-{os.getpid()}-*"
+    pattern = f".{target.name}.tmp-{os.getpid() if pid is None else pid}-*"
     for _ in range(3):  # the worker may still be writing into one: sweep again
         for tmp in target.parent.glob(pattern):
             shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _supervise(args) -> int:
+    """Run the command in a forked child and wait; on SIGINT/SIGTERM/SIGHUP kill the child, remove
+    its temporary output directories and report the signal (:data:`SUPERVISED`)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    pid = os.fork()
+    if pid == 0:  # the child: the work; the parent alone answers signals
+        code = EXIT_INTERNAL
+        try:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole group: the parent acts
+            signal.signal(signal.SIGHUP, signal.SIG_IGN)
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            code = _run(args, False)
+        finally:
+            _exit_now(code)
+    name = f"wingopt {args.command}"
+    try:
+        _, status = os.waitpid(pid, 0)
+    except (KeyboardInterrupt, Terminated) as exc:
+        _kill(pid)
+        _remove_own_temporaries(getattr(args, "out", None), pid)
+        signum = exc.signum if isinstance(exc, Terminated) else signal.SIGINT
+        what = "interrupted (Ctrl-C)" if signum == signal.SIGINT else f"terminated by {signal.Signals(signum).name}"
+        _say(f"{name}: {what}; nothing written")
+        return 128 + signum
+    code = os.waitstatus_to_exitcode(status)
+    if code < 0:  # the child was killed (the out-of-memory killer, a signal sent to it alone)
+        _remove_own_temporaries(getattr(args, "out", None), pid)
+        _say(f"{name}: error: the run was killed by {signal.Signals(-code).name}; nothing written")
+        return 128 - code
+    return code
+
+
+def _kill(pid: int) -> None:
+    try:
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+    except (ProcessLookupError, ChildProcessError):
+        pass
 
 
 def _exit_now(code: int) -> None:
@@ -273,9 +322,13 @@ def main(argv: list[str] | None = None) -> int:
     _RECEIVED.clear()
     old = _install_handlers()
     _ABANDONED.clear()
-    threaded = args.command in THREADED and threading.current_thread() is threading.main_thread() and bool(old)
+    main_thread = threading.current_thread() is threading.main_thread() and bool(old)
+    supervised = args.command in SUPERVISED and main_thread
     try:
-        rc = _run(args, threaded)
+        if supervised and argv is None and hasattr(os, "fork") and not os.environ.get("WINGOPT_NO_FORK"):
+            rc = _supervise(args)
+        else:
+            rc = _run(args, supervised)
     finally:
         for s, h in old.items():
             signal.signal(s, h)

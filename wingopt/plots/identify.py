@@ -127,6 +127,9 @@ def plot_overlay(
     truth_t, truth_lift : array or float, optional
         The true lift history (``truth_lift`` a number: a constant line).
     title : str
+
+    The vertical range covers the curves, bands and truth after the first tenth of the record (a
+    filter's wide start-up band would flatten everything else); what lies beyond is clipped.
     ax : matplotlib axes, optional
 
     Returns
@@ -134,19 +137,30 @@ def plot_overlay(
     Figure
     """
     fig, ax, own = _axes(ax)
+    seen = []  # values that set the vertical range (a filter's start-up band would flatten the rest)
     for i, (label, t, lift, std) in enumerate(curves):
         t, lift = np.asarray(t, dtype=float), np.asarray(lift, dtype=float)
         color = f"C{i}"
-        ax.plot(t, lift, color=color, lw=1.3, label=label)
-        if std is not None:
+        band = std is not None and np.any(np.isfinite(np.asarray(std, dtype=float)))
+        ax.plot(t, lift, color=color, lw=1.3, label=f"{label} (1-sigma band)" if band else label)
+        later = t >= t[0] + 0.1 * (t[-1] - t[0]) if t.size > 1 else np.ones(t.size, bool)
+        seen.append(lift[later])
+        if band:
             std = np.asarray(std, dtype=float)
-            if np.any(np.isfinite(std)):
-                ax.fill_between(t, lift - std, lift + std, color=color, alpha=0.2, lw=0, label=f"{label} 1-sigma")
+            ax.fill_between(t, lift - std, lift + std, color=color, alpha=0.2, lw=0)
+            seen += [(lift - std)[later], (lift + std)[later]]
     if truth_lift is not None:
         if truth_t is None or np.ndim(truth_lift) == 0:
             ax.axhline(float(np.ravel(truth_lift)[-1]), color="k", ls="--", lw=1, label="truth")
         else:
             ax.plot(truth_t, truth_lift, color="k", ls="--", lw=1, label="truth")
+        seen.append(np.ravel(np.asarray(truth_lift, dtype=float)))
+    vals = np.concatenate(seen) if seen else np.array([])
+    vals = vals[np.isfinite(vals)]
+    if vals.size:
+        lo, hi = np.percentile(vals, [1, 99])
+        pad = 0.15 * (hi - lo) or 0.1 * max(abs(lo), abs(hi), 1e-6)
+        ax.set_ylim(lo - pad, hi + pad)
     ax.set_xlabel("t (s)")
     ax.set_ylabel("lift (N)")
     ax.grid(alpha=0.3)

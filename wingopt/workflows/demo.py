@@ -14,6 +14,7 @@ self-contained ``report.html``.
 
 from __future__ import annotations
 
+import logging
 import platform
 import time
 from dataclasses import dataclass
@@ -99,11 +100,7 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
     dict
         The demo's summary (also written as ``summary.json``).
     """
-    from wingopt.membrane import MembraneModel
-    from wingopt.plate import PlateModel
     from wingopt.problem import load_problem
-    from wingopt.workflows.identify import identify, write_identify_outputs
-    from wingopt.workflows.morph import morph, write_morph_outputs
 
     if config is not None and not isinstance(config, DemoConfig):
         raise InputError(f"config = {config!r}: expected a DemoConfig (e.g. DemoConfig.quick()) or None")
@@ -118,6 +115,23 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
     costs = stage_costs(cfg)
     stages = Stages([c for _, c in costs], "wingopt demo" + (" --quick" if cfg == DemoConfig.quick() else ""),
                     seconds=True, enabled=progress is not False)  # fmt: skip
+    inner = logging.getLogger("wingopt.progress.identify")  # the demo's own lines say which run is going
+    inner_level = inner.level
+    inner.setLevel(logging.WARNING)
+    try:
+        _run(cfg, writer, stages, summary, plate, membrane, t_start)
+    finally:
+        inner.setLevel(inner_level)
+    stages.finish()
+    return summary
+
+
+def _run(cfg, writer, stages, summary, plate, membrane, t_start) -> None:
+    from wingopt.membrane import MembraneModel
+    from wingopt.plate import PlateModel
+    from wingopt.workflows.identify import identify, write_identify_outputs
+    from wingopt.workflows.morph import morph, write_morph_outputs
+
     with writer as tmp:
         # -- 1. morphing ----------------------------------------------------------------------
         for shape in SHAPES:
@@ -175,8 +189,6 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
         summary["wall_s"] = time.perf_counter() - t_start
         write_json(tmp / "summary.json", summary)
         _report(tmp, summary, cfg).write(tmp / "report.html")
-    stages.finish()
-    return summary
 
 
 def overlay(runs: dict, path: Path, title: str = "") -> Path | None:

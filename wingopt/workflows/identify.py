@@ -38,6 +38,7 @@ from wingopt.measurements.dic import DICFrames
 from wingopt.membrane import MembraneModel, TruthRecord
 from wingopt.membrane.loads import LOAD_CASES
 from wingopt.problem import load_problem
+from wingopt.progress import fmt_duration
 from wingopt.results import ResultDirectory, write_csv, write_json
 from wingopt.validate import check_nodes, check_number, check_seed
 from wingopt.values import LambdaChoice, NoiseLevel
@@ -46,6 +47,8 @@ from wingopt.workflows.protocols import TRUTH_NODES, check_truth_settings, simul
 from wingopt.workflows.studies import evaluate, load_field, protocol_sign
 
 log = logging.getLogger(__name__)
+progress = logging.getLogger("wingopt.progress.identify")
+"""Stage lines of a run (:mod:`wingopt.progress`; the command line shows them on stderr)."""
 
 __all__ = ["IdentifyRun", "identify", "write_identify_outputs", "LOAD_GRID"]
 
@@ -262,12 +265,18 @@ def identify(
         fraction = NoiseLevel.from_percent(noise_percent).fraction
         sanity.check_duration(t_end, problem.identification.dt)
         samples, truth_mesh = int(round(t_end / problem.identification.dt)) + 1, truth_nodes or problem.nodes
-    resources.check(
+    estimate = resources.check(
         resources.estimate_identify(problem.nodes, samples, truth_nodes=truth_mesh, method=spec.method), max_memory
     )
     membrane = MembraneModel.from_problem(problem)
     case, report, protocol, frames = None, None, {}, None
     if load is not None:
+        mesh = truth_nodes or problem.nodes
+        progress.info(
+            "identify: simulating the %s truth of %s on %dx%d, %d samples (the whole run: about %s)",
+            truth, load if isinstance(load, str) else "the load", mesh[0], mesh[1], samples,
+            fmt_duration(estimate.seconds),
+        )  # fmt: skip
         case = simulate_case(
             problem, load, fraction, seed, truth_nodes, t_end,
             truth=truth, prestrain=truth_prestrain, damping=truth_damping, gust=gust, tell_noise=False,
@@ -306,8 +315,10 @@ def identify(
     prior = opts.initial_load if opts.initial_load is not None else problem.identification.initial_load
     warnings = sanity.record_checks(membrane, meas, prior)
     t0 = time.perf_counter()
+    progress.info("identify: %s on %d samples of %d sensors", spec.label, meas.count, len(meas.sensor_names))
     result = build(spec, membrane, opts, truth=case, settings=settings, frames=frames).run(meas)
     wall = time.perf_counter() - t0
+    progress.info("identify: %s done in %s", spec.label, fmt_duration(wall))
     warnings += sanity.fit_checks(membrane, meas, result, sanity_sigma(meas, result))
     warnings += [w for w in result.info.get("warnings", []) if w not in warnings]  # the estimator's adequacy
     for w in warnings:  # each once, here: the engines return theirs, they do not print them
@@ -356,6 +367,7 @@ def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = 
     X, Y = np.meshgrid(xs, ys)
     Pg = run.load_field()(X, Y)
     inputs = [("--data", (run.data_report or {}).get("file")), ("problem", getattr(problem, "source", None))]
+    progress.info("identify: writing the outputs%s", " and figures" if plots else "")
     with ResultDirectory(out_dir, inputs=inputs) as tmp:
         write_json(tmp / "summary.json", to_jsonable(run.summary()))
         write_csv(tmp / "load.csv", ["x", "y", "pressure_Pa"], zip(X.ravel(), Y.ravel(), Pg.ravel()))
