@@ -44,7 +44,7 @@ class Stages:
         A-priori cost of every stage, in order (seconds, or any unit in proportion: the estimate
         rescales them by the time the finished stages took).
     what : str
-        Name of the run (the first and last lines).
+        Name of the run, e.g. ``"demo, 21 stages"`` (the first and last lines).
     seconds : bool
         ``costs`` are seconds (the first line then says how long the whole run should take).
     logger : logging.Logger, optional
@@ -83,10 +83,7 @@ class Stages:
         self.enabled = bool(enabled)
         self.seconds = bool(seconds)
         total = sum(self.costs)
-        if seconds and total > 0:
-            self._say(f"{what}: {len(self.costs)} stages, about {fmt_duration(total)}")
-        else:
-            self._say(f"{what}: {len(self.costs)} stages")
+        self._say(f"{what}: about {fmt_duration(total)}" if seconds and total > 0 else what)
 
     def _say(self, line: str) -> None:
         self.lines.append(line)

@@ -130,6 +130,8 @@ class _Lines(logging.Formatter):
         level = record.levelname.lower()
         if record.levelno >= logging.WARNING:
             return f"wingopt {self.command}: {level}: {one_line(record.getMessage())}"
+        if record.name.startswith("wingopt.progress"):  # stage lines: the command's own voice
+            return f"wingopt {self.command}: {one_line(record.getMessage())}"
         return f"wingopt {self.command}: {record.name.removeprefix('wingopt.')}: {one_line(record.getMessage())}"
 
 

@@ -113,8 +113,8 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
     membrane = load_problem("membrane")
     summary: dict = {"version": __version__, "config": cfg.__dict__, "morph": {}, "identify": {}, "tables": {}}
     costs = stage_costs(cfg)
-    stages = Stages([c for _, c in costs], "wingopt demo" + (" --quick" if cfg == DemoConfig.quick() else ""),
-                    seconds=True, enabled=progress is not False)  # fmt: skip
+    what = f"demo{' --quick' if cfg == DemoConfig.quick() else ''}, {len(costs)} stages"
+    stages = Stages([c for _, c in costs], what, seconds=True, enabled=progress is not False)
     inner = logging.getLogger("wingopt.progress.identify")  # the demo's own lines say which run is going
     inner_level = inner.level
     inner.setLevel(logging.WARNING)

@@ -273,7 +273,7 @@ def identify(
     if load is not None:
         mesh = truth_nodes or problem.nodes
         progress.info(
-            "identify: simulating the %s truth of %s on %dx%d, %d samples (the whole run: about %s)",
+            "simulating the %s truth of %s on %dx%d, %d samples (the whole run: about %s)",
             truth, load if isinstance(load, str) else "the load", mesh[0], mesh[1], samples,
             fmt_duration(estimate.seconds),
         )  # fmt: skip
@@ -315,10 +315,10 @@ def identify(
     prior = opts.initial_load if opts.initial_load is not None else problem.identification.initial_load
     warnings = sanity.record_checks(membrane, meas, prior)
     t0 = time.perf_counter()
-    progress.info("identify: %s on %d samples of %d sensors", spec.label, meas.count, len(meas.sensor_names))
+    progress.info("%s on %d samples of %d sensors", spec.label, meas.count, len(meas.sensor_names))
     result = build(spec, membrane, opts, truth=case, settings=settings, frames=frames).run(meas)
     wall = time.perf_counter() - t0
-    progress.info("identify: %s done in %s", spec.label, fmt_duration(wall))
+    progress.info("%s done in %s", spec.label, fmt_duration(wall))
     warnings += sanity.fit_checks(membrane, meas, result, sanity_sigma(meas, result))
     warnings += [w for w in result.info.get("warnings", []) if w not in warnings]  # the estimator's adequacy
     for w in warnings:  # each once, here: the engines return theirs, they do not print them
@@ -367,7 +367,7 @@ def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = 
     X, Y = np.meshgrid(xs, ys)
     Pg = run.load_field()(X, Y)
     inputs = [("--data", (run.data_report or {}).get("file")), ("problem", getattr(problem, "source", None))]
-    progress.info("identify: writing the outputs%s", " and figures" if plots else "")
+    progress.info("writing the outputs%s", " and figures" if plots else "")
     with ResultDirectory(out_dir, inputs=inputs) as tmp:
         write_json(tmp / "summary.json", to_jsonable(run.summary()))
         write_csv(tmp / "load.csv", ["x", "y", "pressure_Pa"], zip(X.ravel(), Y.ravel(), Pg.ravel()))

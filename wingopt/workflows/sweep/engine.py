@@ -269,7 +269,7 @@ class Engine:
         # Stage lines (wingopt.progress): one per finished task with the time so far and an estimate
         # of the rest from the tasks' own cost estimates (the command line shows them on stderr).
         where = "serial" if self.client is None else f"{self.n_workers} workers"
-        stages = Stages([t.cost for t in order], f"{description}: {len(order)} tasks ({where})", seconds=True)
+        stages = Stages([t.cost for t in order], f"{description}, {len(order)} tasks ({where})", seconds=True)
         index = {t.key: i for i, t in enumerate(order)}
         try:
             runner = self._run_serial if self.client is None else self._run_dask
