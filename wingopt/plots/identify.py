@@ -123,7 +123,8 @@ def plot_overlay(
     path : Path or None
         PNG to write (nothing when ``ax`` is given).
     curves : sequence of (label, t, lift, std)
-        One per estimator (``std`` ``None`` or all-NaN: no band), e.g. the MHE and the JEKF.
+        One per estimator (``std`` ``None`` or all-NaN: no band), e.g. the MHE and the JEKF; the
+        first is drawn on top.
     truth_t, truth_lift : array or float, optional
         The true lift history (``truth_lift`` a number: a constant line).
     title : str
@@ -142,12 +143,13 @@ def plot_overlay(
         t, lift = np.asarray(t, dtype=float), np.asarray(lift, dtype=float)
         color = f"C{i}"
         band = std is not None and np.any(np.isfinite(np.asarray(std, dtype=float)))
-        ax.plot(t, lift, color=color, lw=1.3, label=f"{label} (1-sigma band)" if band else label)
+        top = 2.5 + len(curves) - i  # the first curve (the MHE) drawn over the others
+        ax.plot(t, lift, color=color, lw=1.3, label=f"{label} (1-sigma band)" if band else label, zorder=top)
         later = t >= t[0] + 0.1 * (t[-1] - t[0]) if t.size > 1 else np.ones(t.size, bool)
         seen.append(lift[later])
         if band:
             std = np.asarray(std, dtype=float)
-            ax.fill_between(t, lift - std, lift + std, color=color, alpha=0.2, lw=0)
+            ax.fill_between(t, lift - std, lift + std, color=color, alpha=0.2, lw=0, zorder=1)
             seen += [(lift - std)[later], (lift + std)[later]]
     if truth_lift is not None:
         if truth_t is None or np.ndim(truth_lift) == 0:

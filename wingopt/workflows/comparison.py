@@ -378,7 +378,7 @@ def write_overlays(owner: OwnedDirectory, records: Sequence[dict]) -> list[str]:
             h = rec["history"]
             std = None if h.get("lift_std_N") is None else [float("nan") if v is None else v for v in h["lift_std_N"]]
             order = rec.get("params", {}).get("jekf_modes")
-            curves.append((label + (f" ({order} modes)" if order else ""), h["t"], h["lift_N"], std))
+            curves.append((label + (f", {order} modes" if order else ""), h["t"], h["lift_N"], std))
         title = f"{load}, {100 * noise:g} % noise, seed {seed}"
         fig = plot_overlay(None, curves, None, runs["mhe"]["true_lift"], title)
         name = f"overlay-{load}.png"
