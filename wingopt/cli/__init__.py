@@ -200,45 +200,12 @@ def _install_handlers() -> dict:
 SUPERVISED = frozenset({"morph", "identify", "demo", "modes", "gains"})
 """Commands whose work may sit in one long C call (a sparse factorisation, a dense Riccati or
 eigen-decomposition that holds the interpreter's lock for minutes). Run from the console script
-they run in a child process that the main process watches: a signal ends the child at once, its
-temporary output directories are removed and the main process reports it (within a second,
-whatever the child is doing). Called in-process (``main([...])``, tests), they run in a worker
-thread instead (signals are then honoured at once except inside a call that holds the lock).
-The others (``compare``, ``sweep``: a dask client; ``follow``: its own handlers; ``calibrate``,
-``design-sensors``: their ``--write-problem`` files) run in the main thread."""
-
-
-def _in_thread(args):
-    """``args.func(args)`` in a worker thread; the main thread waits, so signals reach it at once.
-
-    On SIGINT/SIGTERM/SIGHUP the worker is abandoned: the temporary output directories this
-    process made next to ``--out`` are removed (nothing half-written is left behind) and the
-    exception propagates; :func:`main` then ends the process without waiting for the worker.
-    """
-    box: dict = {}
-
-    def target():
-        try:
-            box["rc"] = args.func(args)
-        except BaseException as exc:  # handed to the main thread
-            box["exc"] = exc
-
-    worker = threading.Thread(target=target, name=f"wingopt {args.command}", daemon=True)
-    worker.start()
-    try:
-        while worker.is_alive():
-            worker.join(0.05)
-    except BaseException:
-        if worker.is_alive():
-            _ABANDONED.append(worker)
-            _remove_own_temporaries(getattr(args, "out", None))
-        raise
-    if "exc" in box:
-        raise box["exc"]
-    return box.get("rc")
-
-
-_ABANDONED: list[threading.Thread] = []  # worker threads left running by an interrupted command
+(``main()`` without arguments) they run in a child process that the main process watches: a
+signal ends the child at once, its temporary output directories are removed and the main process
+reports it, within a second whatever the child is doing. Called in-process (``main([...])``:
+tests, embedding) and for the other commands (``compare``, ``sweep``: a dask client; ``follow``:
+its own handlers; ``calibrate``, ``design-sensors``: their ``--write-problem`` files) the work runs
+in this process, where a signal is honoured between calls."""
 
 
 def _remove_own_temporaries(out, pid: int | None = None) -> None:
@@ -270,7 +237,7 @@ def _supervise(args) -> int:
             signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole group: the parent acts
             signal.signal(signal.SIGHUP, signal.SIG_IGN)
             signal.signal(signal.SIGTERM, signal.SIG_DFL)
-            code = _run(args, False)
+            code = _run(args)
         finally:
             _exit_now(code)
     name = f"wingopt {args.command}"
@@ -300,7 +267,7 @@ def _kill(pid: int) -> None:
 
 
 def _exit_now(code: int) -> None:
-    """End the process with ``code`` without waiting for an abandoned worker thread."""
+    """End the (child) process with ``code`` at once, its output flushed."""
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.flush()
@@ -323,26 +290,21 @@ def main(argv: list[str] | None = None) -> int:
     _configure_logging(args)
     _RECEIVED.clear()
     old = _install_handlers()
-    _ABANDONED.clear()
     main_thread = threading.current_thread() is threading.main_thread() and bool(old)
-    supervised = args.command in SUPERVISED and main_thread
+    supervised = args.command in SUPERVISED and main_thread and argv is None
     try:
-        if supervised and argv is None and hasattr(os, "fork") and not os.environ.get("WINGOPT_NO_FORK"):
-            rc = _supervise(args)
-        else:
-            rc = _run(args, supervised)
+        if supervised and hasattr(os, "fork") and not os.environ.get("WINGOPT_NO_FORK"):
+            return _supervise(args)
+        return _run(args)
     finally:
         for s, h in old.items():
             signal.signal(s, h)
-    if _ABANDONED and any(t.is_alive() for t in _ABANDONED):
-        _exit_now(rc)
-    return rc
 
 
-def _run(args, threaded: bool) -> int:
+def _run(args) -> int:
     name = f"wingopt {args.command}"
     try:
-        return int((_in_thread(args) if threaded else args.func(args)) or EXIT_OK)
+        return int(args.func(args) or EXIT_OK)
     except InputError as exc:
         _say(f"{name}: error: {exc}")
         return EXIT_INPUT
