@@ -340,6 +340,11 @@ def run_comparison(
         sections.append(consistency_markdown(cons_rows))
     if preset.table:
         report["overlays"] = write_overlays(owner, [by[t.key] for t in table_tasks])
+        if report["overlays"]:
+            sections.append(
+                "Lift histories of the MHE and the JEKFs with their 1-sigma bands and the true lift (lowest noise, "
+                f"first seed), in the output directory: {', '.join(report['overlays'])}."
+            )
     report["wall_s"] = time.perf_counter() - t0
     sections.insert(0, checklist_markdown(report))
     text = "\n\n".join(s for s in sections if s) + "\n"
