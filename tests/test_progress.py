@@ -176,3 +176,23 @@ def test_sigterm_mid_demo_leaves_no_partial_directory(tmp_path):
     assert time.perf_counter() - t0 < 1.5
     assert p.returncode == 143 and "nothing written" in err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_compare_piped_shows_a_line_per_finished_task(tmp_path):
+    """The study engine's stage lines: the plan with its estimate, one line per finished task, the end."""
+    problem = tmp_path / "small.toml"
+    problem.write_text((ROOT / "problems" / "membrane.toml").read_text().replace("nodes = [25, 13]", "nodes = [13, 7]"))
+    err = tmp_path / "stderr.txt"
+    with open(err, "w") as fh:
+        p = _cli("compare", str(problem), "--loads", "L1,L2", "--noise", "5", "--seeds", "1", "--methods", "mhe",
+                 "--no-oracle", "--truth-mesh", "25x13", "--out", str(tmp_path / "cmp"),
+                 stdout=subprocess.PIPE, stderr=fh, text=True)  # fmt: skip
+        out, _ = p.communicate(timeout=600)
+    assert p.returncode == 0, err.read_text()
+    lines = err.read_text().splitlines()
+    assert re.fullmatch(r"wingopt compare: compare, 2 tasks \(serial\): about \d+ s", lines[0])
+    task = r"wingopt compare: \[(\d)/2\] done: load=L\d method=mhe noise=0.05 seed=0 "
+    done = [re.match(task, ln).group(1) for ln in lines if re.match(task, ln)]
+    assert done == ["1", "2"]
+    assert re.fullmatch(r"wingopt compare: compare, 2 tasks \(serial\): done in \d+ s", lines[-1])
+    assert "| L1 | 5 % | mhe |" in out and "done:" not in out
