@@ -237,6 +237,7 @@ def _supervise(args) -> int:
             signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole group: the parent acts
             signal.signal(signal.SIGHUP, signal.SIG_IGN)
             signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            _die_with_parent()
             code = _run(args)
         finally:
             _exit_now(code)
@@ -256,6 +257,16 @@ def _supervise(args) -> int:
         _say(f"{name}: error: the run was killed by {signal.Signals(-code).name}; nothing written")
         return 128 - code
     return code
+
+
+def _die_with_parent() -> None:
+    """Linux: the child gets SIGKILL if the watching process dies (killed with -9 itself)."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError, TypeError):
+        pass
 
 
 def _kill(pid: int) -> None:
