@@ -178,21 +178,25 @@ def test_sigterm_mid_demo_leaves_no_partial_directory(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-def test_compare_piped_shows_a_line_per_finished_task(tmp_path):
-    """The study engine's stage lines: the plan with its estimate, one line per finished task, the end."""
+def test_compare_piped_shows_a_line_per_finished_task_and_writes_the_overlay(tmp_path):
+    """The study engine's stage lines (the plan with its estimate, one line per finished task, the
+    end) on a piped stderr; the MHE–JEKF overlay among the outputs, the JEKF at 60 modes."""
     problem = tmp_path / "small.toml"
     problem.write_text((ROOT / "problems" / "membrane.toml").read_text().replace("nodes = [25, 13]", "nodes = [13, 7]"))
     err = tmp_path / "stderr.txt"
     with open(err, "w") as fh:
-        p = _cli("compare", str(problem), "--loads", "L1,L2", "--noise", "5", "--seeds", "1", "--methods", "mhe",
-                 "--no-oracle", "--truth-mesh", "25x13", "--out", str(tmp_path / "cmp"),
+        p = _cli("compare", str(problem), "--loads", "L1", "--noise", "5", "--seeds", "1", "--methods",
+                 "mhe,jekf-tuned", "--no-oracle", "--truth-mesh", "25x13", "--out", str(tmp_path / "cmp"),
                  stdout=subprocess.PIPE, stderr=fh, text=True)  # fmt: skip
         out, _ = p.communicate(timeout=600)
     assert p.returncode == 0, err.read_text()
     lines = err.read_text().splitlines()
     assert re.fullmatch(r"wingopt compare: compare, 2 tasks \(serial\): about \d+ s", lines[0])
-    task = r"wingopt compare: \[(\d)/2\] done: load=L\d method=mhe noise=0.05 seed=0 "
-    done = [re.match(task, ln).group(1) for ln in lines if re.match(task, ln)]
-    assert done == ["1", "2"]
+    task = r"wingopt compare: \[(\d)/2\] done: (jekf_modes=60 )?load=L1 method=(mhe|jekf-tuned) noise=0.05 seed=0 "
+    done = [re.match(task, ln).groups() for ln in lines if re.match(task, ln)]
+    assert [d[0] for d in done] == ["1", "2"]
+    assert {d[2]: d[1] for d in done} == {"mhe": None, "jekf-tuned": "jekf_modes=60 "}
     assert re.fullmatch(r"wingopt compare: compare, 2 tasks \(serial\): done in \d+ s", lines[-1])
-    assert "| L1 | 5 % | mhe |" in out and "done:" not in out
+    assert "| L1 | 5 % | mhe |" in out and "done:" not in out and "JEKF 60 modes" in out
+    png = tmp_path / "cmp" / "overlay-L1.png"
+    assert png.read_bytes()[:4] == b"\x89PNG" and "overlay-L1.png" in out

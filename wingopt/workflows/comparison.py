@@ -299,7 +299,9 @@ def run_comparison(
     # One task list: the table's runs (with the oracle), the sign study's not already in the table,
     # and the consistency study's; shared truths and models are computed once for all of them.
     table_runs, sign_runs = preset.runs()
-    table_tasks, shared = protocol_tasks(prob, table_runs, settings, truth, preset.oracle, jekf_modes=preset.jekf_modes)
+    table_tasks, shared = protocol_tasks(
+        prob, table_runs, settings, truth, preset.oracle, jekf_modes=preset.jekf_modes, histories=True
+    )
     sign_tasks, shared2 = protocol_tasks(prob, sign_runs, settings, truth, False, jekf_modes=preset.jekf_modes)
     cons_tasks, shared3 = consistency_tasks(prob, settings=settings, truth_nodes=truth)
     cache = out / "consistency.json"

@@ -84,10 +84,12 @@ def protocol_record(
     initial_load: float,
     oracle_offsets: Sequence[float] | None = None,
     jekf_modes: int | None = None,
+    history: bool = False,
 ) -> dict:
     """One run: seeded noise on the clean truth, ``method`` on it, final metrics (and the oracle lambda).
 
     ``jekf_modes``: a JEKF keeps only its lowest ``jekf_modes`` modes (``None``: all, exact).
+    ``history``: the record keeps the lift history (:func:`lift_history`, ~10 kB) for the overlay plots.
     """
     case = noisy_case(clean, noise, seed)
     t0 = time.perf_counter()
@@ -99,7 +101,10 @@ def protocol_record(
         grid = [rec.regularization * 10.0**e for e in oracle_offsets]
         lam, err, _ = oracle_lambda(case, model, settings or MHESettings(), grid, initial_load=initial_load)
         rec.oracle_regularization, rec.oracle_load_error = lam, min(err, rec.load_error)
-    return {**rec.as_dict(), "params": params, "history": lift_history(res)}
+    out = {**rec.as_dict(), "params": params}
+    if history:
+        out["history"] = lift_history(res)
+    return out
 
 
 HISTORY_POINTS = 201
@@ -114,8 +119,8 @@ def lift_history(result, points: int = HISTORY_POINTS) -> dict:
     std = None if result.lift_std is None else np.asarray(result.lift_std, dtype=float)[idx]
     return {
         "t": [round(float(v), 9) for v in t[idx]],
-        "lift_N": [float(v) for v in lift],
-        "lift_std_N": None if std is None else [float(v) if np.isfinite(v) else None for v in std],
+        "lift_N": [float(f"{v:.6g}") for v in lift],
+        "lift_std_N": None if std is None else [float(f"{v:.4g}") if np.isfinite(v) else None for v in std],
     }
 
 
@@ -139,12 +144,14 @@ def protocol_tasks(
     oracle_offsets: Sequence[float] = ORACLE_OFFSETS,
     t_end: float = 1.0,
     jekf_modes: int | None = None,
+    histories: bool = False,
 ) -> tuple[list[SweepTask], list[SharedInput]]:
     """Tasks of ``runs`` = (load, noise fraction, seed, method) on ``problem`` (the comparison preset).
 
     Keys are ``task_key({"load", "noise", "seed", "method"})``: the fields of every comparison record;
     a JEKF at a reduced order (``jekf_modes``: its lowest modes only) adds ``"jekf_modes"``, so that
-    its records and the exact filter's are never taken for each other (``--resume``).
+    its records and the exact filter's are never taken for each other (``--resume``). ``histories``:
+    the records keep their lift histories (the comparison table's, for the overlay plots).
     """
     model_key = f"model/{digest(problem)}"
     shared = {model_key: SharedInput(model_key, build_model, (problem,))}
@@ -158,7 +165,7 @@ def protocol_tasks(
         shared.setdefault(truth_key, SharedInput(truth_key, simulate_clean, (problem, load, truth_nodes, t_end)))
         sign = protocol_sign(load) * abs(problem.identification.initial_load)
         offsets = tuple(oracle_offsets) if oracle and method == "mhe" else None
-        args = (params, method, float(noise), int(seed), settings, sign, offsets, modes)
+        args = (params, method, float(noise), int(seed), settings, sign, offsets, modes, histories)
         key = task_key(params)
         cost = task_cost(method, problem.nodes, t_end, bool(offsets), modes)
         tasks.setdefault(key, SweepTask(key, protocol_record, args, (truth_key, model_key), cost))
