@@ -14,11 +14,12 @@ in proportion), scaled by how long the stages done so far took against their cos
 
 from __future__ import annotations
 
+import json
 import logging
 import time
 from collections.abc import Callable, Sequence
 
-__all__ = ["Stages", "LOGGER", "fmt_duration"]
+__all__ = ["Stages", "LOGGER", "fmt_duration", "task_label"]
 
 LOGGER = "wingopt.progress"
 """The logger the stage lines go to (the CLI shows it at INFO unless ``--quiet``)."""
@@ -33,6 +34,16 @@ def fmt_duration(seconds: float) -> str:
     if seconds >= 90:
         return f"{seconds / 60:.2g} min"
     return f"{seconds:.0f} s"
+
+
+def task_label(key: str, status: str = "ok") -> str:
+    """A study task's key (canonical JSON of its parameters) as ``name=value`` pairs for a stage line."""
+    try:
+        params = json.loads(key)
+    except (TypeError, ValueError):
+        params = None
+    text = " ".join(f"{k}={v}" for k, v in params.items()) if isinstance(params, dict) else str(key)
+    return text if status == "ok" else f"{text} [{status}]"
 
 
 class Stages:

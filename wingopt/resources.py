@@ -29,6 +29,7 @@ from contextvars import ContextVar
 from dataclasses import dataclass, field
 
 from wingopt.errors import InputError
+from wingopt.memory import BASE_BYTES, available_memory
 
 __all__ = [
     "Estimate",
@@ -48,8 +49,6 @@ __all__ = [
     "long_runs",
 ]
 
-BASE_BYTES = 150e6
-"""Interpreter, numpy/scipy/cvxpy imports and small arrays (measured ~150 MB)."""
 
 _F = 8.0  # bytes per float64
 
@@ -103,13 +102,7 @@ _LONG_RUNS: ContextVar[tuple[bool, str | None]] = ContextVar("wingopt_long_runs"
 @contextmanager
 def long_runs(allowed: bool = True, option: str | None = None):
     """Within this block :func:`check` lets a run estimated beyond :data:`MAX_SECONDS` start
-    (``allowed``), or, refusing it, names ``option`` as the way to allow it (``"--force"``).
-
-    Examples
-    --------
-    >>> with long_runs():                                   # doctest: +SKIP
-    ...     morph_to_directory("plate", "twist", "lqr", "out", nodes=(200, 800))
-    """
+    (``allowed``), or names ``option`` (``"--force"``) as the way to allow one it refuses."""
     token = _LONG_RUNS.set((bool(allowed), option))
     try:
         yield
@@ -148,56 +141,6 @@ def parse_size(text: str) -> float:
     if not value > 0:
         raise InputError(f"max-memory = {text!r}: expected a positive size")
     return value
-
-
-def available_memory() -> float:
-    """Bytes this process may use now: the least of ``MemAvailable`` (total physical memory where
-    unknown), the address-space limit (``ulimit -v``, less what is mapped already) and the cgroup's
-    memory limit (less its current use)."""
-    avail = float("inf")
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    avail = float(line.split()[1]) * 1024
-                    break
-    except OSError:
-        pass
-    if avail == float("inf"):
-        try:
-            avail = float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
-        except (ValueError, OSError, AttributeError):
-            pass
-    try:
-        import resource
-
-        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
-        if soft != resource.RLIM_INFINITY and soft > 0:
-            avail = min(avail, max(soft - _mapped_bytes(), 0.0) + BASE_BYTES)
-    except (ImportError, OSError, ValueError):
-        pass
-    for limit_file, usage_file in (
-        ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
-        ("/sys/fs/cgroup/memory/memory.limit_in_bytes", "/sys/fs/cgroup/memory/memory.usage_in_bytes"),
-    ):
-        try:
-            text = open(limit_file).read().strip()
-            if text.isdigit() and int(text) < 1 << 60:
-                used = float(open(usage_file).read().strip())
-                avail = min(avail, max(float(text) - used, 0.0) + BASE_BYTES)
-            break
-        except (OSError, ValueError):
-            continue
-    return avail
-
-
-def _mapped_bytes() -> float:
-    """Virtual memory this process maps now (what counts against ``ulimit -v``)."""
-    try:
-        with open("/proc/self/statm") as fh:
-            return float(fh.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
-    except (OSError, ValueError, IndexError, AttributeError):
-        return 0.0
 
 
 def _lu_bytes(n: float) -> float:

@@ -55,7 +55,7 @@ def engine_settings(args, workers: int | None, cluster: dict | None = None, retr
         scheduler=getattr(args, "scheduler", None),
         cluster=dict(cluster or {}),
         retries=retries,
-        progress=False,  # stage lines on stderr instead (wingopt.progress), terminal or not
+        progress=True,  # stage lines on stderr (wingopt.progress), terminal or not
     )
 
 

@@ -47,8 +47,7 @@ from wingopt.workflows.protocols import TRUTH_NODES, check_truth_settings, simul
 from wingopt.workflows.studies import evaluate, load_field, protocol_sign
 
 log = logging.getLogger(__name__)
-progress = logging.getLogger("wingopt.progress.identify")
-"""Stage lines of a run (:mod:`wingopt.progress`; the command line shows them on stderr)."""
+progress = logging.getLogger("wingopt.progress.identify")  # stage lines (wingopt.progress), shown by the CLI
 
 __all__ = ["IdentifyRun", "identify", "write_identify_outputs", "LOAD_GRID"]
 
@@ -265,18 +264,14 @@ def identify(
         fraction = NoiseLevel.from_percent(noise_percent).fraction
         sanity.check_duration(t_end, problem.identification.dt)
         samples, truth_mesh = int(round(t_end / problem.identification.dt)) + 1, truth_nodes or problem.nodes
-    estimate = resources.check(
+    est = resources.check(
         resources.estimate_identify(problem.nodes, samples, truth_nodes=truth_mesh, method=spec.method), max_memory
     )
     membrane = MembraneModel.from_problem(problem)
     case, report, protocol, frames = None, None, {}, None
     if load is not None:
-        mesh = truth_nodes or problem.nodes
-        progress.info(
-            "simulating the %s truth of %s on %dx%d, %d samples (the whole run: about %s)",
-            truth, load if isinstance(load, str) else "the load", mesh[0], mesh[1], samples,
-            fmt_duration(estimate.seconds),
-        )  # fmt: skip
+        progress.info("simulating the %s truth of %s on %dx%d, %d samples (the whole run: about %s)", truth,
+                      getattr(load, "name", load), *truth_mesh, samples, fmt_duration(est.seconds))  # fmt: skip
         case = simulate_case(
             problem, load, fraction, seed, truth_nodes, t_end,
             truth=truth, prestrain=truth_prestrain, damping=truth_damping, gust=gust, tell_noise=False,
@@ -318,7 +313,6 @@ def identify(
     progress.info("%s on %d samples of %d sensors", spec.label, meas.count, len(meas.sensor_names))
     result = build(spec, membrane, opts, truth=case, settings=settings, frames=frames).run(meas)
     wall = time.perf_counter() - t0
-    progress.info("%s done in %s", spec.label, fmt_duration(wall))
     warnings += sanity.fit_checks(membrane, meas, result, sanity_sigma(meas, result))
     warnings += [w for w in result.info.get("warnings", []) if w not in warnings]  # the estimator's adequacy
     for w in warnings:  # each once, here: the engines return theirs, they do not print them
@@ -367,7 +361,7 @@ def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = 
     X, Y = np.meshgrid(xs, ys)
     Pg = run.load_field()(X, Y)
     inputs = [("--data", (run.data_report or {}).get("file")), ("problem", getattr(problem, "source", None))]
-    progress.info("writing the outputs%s", " and figures" if plots else "")
+    progress.info("writing the outputs%s (the estimate took %s)", " and figures" * plots, fmt_duration(run.wall_s))
     with ResultDirectory(out_dir, inputs=inputs) as tmp:
         write_json(tmp / "summary.json", to_jsonable(run.summary()))
         write_csv(tmp / "load.csv", ["x", "y", "pressure_Pa"], zip(X.ravel(), Y.ravel(), Pg.ravel()))
@@ -381,7 +375,7 @@ def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = 
 
 
 def _plots(tmp: Path, run: IdentifyRun, X, Y, Pg) -> None:
-    from wingopt.plots.identify import plot_errors, plot_lift, plot_load_field
+    from wingopt.plots.identify import error_histories, plot_errors, plot_lift, plot_load_field
 
     result, case = run.result, run.case
     title = f"{run.protocol.get('load_case', 'data')} · {run.method}"
@@ -401,9 +395,6 @@ def _plots(tmp: Path, run: IdentifyRun, X, Y, Pg) -> None:
 
         plot_sensor_means(tmp / "misfit.png", result.info, run.model.problem.sensor_names, title)
     if case is not None:
-        # Error histories on a subsample of the times (each mesh's basis evaluated once for all of them).
-        from wingopt.plots.identify import error_histories
-
         idx = np.unique(np.linspace(0, result.t.size - 1, 41).astype(int))
         le, de = error_histories(case, result, run.model, idx)
         plot_errors(tmp / "errors.png", result.t[idx], le, de, title, first)

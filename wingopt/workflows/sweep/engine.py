@@ -23,7 +23,6 @@ preferring the other workers (a dask dependency fetch was once seen to wait fore
 from __future__ import annotations
 
 import hashlib
-import json
 import logging
 import os
 import time
@@ -33,7 +32,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from wingopt.errors import InputError
-from wingopt.progress import Stages
+from wingopt.progress import Stages, task_label
 
 __all__ = ["BLAS_ENV", "EngineSettings", "Engine", "SharedInput", "SweepTask", "MODES", "empty_task", "blas_threads"]
 
@@ -78,7 +77,8 @@ class SweepTask:
 @dataclass(frozen=True)
 class EngineSettings:
     """How to run a study. ``workers``: processes of the local cluster (default: the CPU count),
-    or the jobs to request from a batch cluster; ``cluster``: dask-jobqueue keyword arguments."""
+    or the jobs to request from a batch cluster; ``cluster``: dask-jobqueue keyword arguments;
+    ``progress``: a stage line per finished task (:mod:`wingopt.progress`, shown by the CLI)."""
 
     mode: str = "local"
     workers: int | None = None
@@ -100,17 +100,6 @@ class EngineSettings:
             raise InputError(f"stall_s = {self.stall_s!r}: expected a positive number of seconds or None")
         if self.mode == "scheduler" and not self.scheduler:
             raise InputError("scheduler: expected an address such as tcp://host:8786")
-
-
-def _short(key: str) -> str:
-    """A task key for a progress line: its JSON parameters as ``name=value`` pairs."""
-    try:
-        params = json.loads(key)
-    except (TypeError, ValueError):
-        return str(key)
-    if not isinstance(params, dict):
-        return str(key)
-    return " ".join(f"{k}={v}" for k, v in params.items())
 
 
 def _dask_key(prefix: str, key: str, run: str) -> str:
@@ -265,29 +254,17 @@ class Engine:
             if missing:
                 raise InputError(f"task {t.key!r}: shared input {missing[0]!r} is not defined")
         order = sorted(tasks, key=lambda t: t.cost)  # the cheapest first: results arrive early
-        bar = self._bar(len(order), description)
-        # Stage lines (wingopt.progress): one per finished task with the time so far and an estimate
-        # of the rest from the tasks' own cost estimates (the command line shows them on stderr).
+        # Stage lines (wingopt.progress): one per finished task, the time so far and the rest estimated
         where = "serial" if self.client is None else f"{self.n_workers} workers"
-        stages = Stages([t.cost for t in order], f"{description}, {len(order)} tasks ({where})", seconds=True)
+        what = f"{description}, {len(order)} tasks ({where})"
+        stages = Stages([t.cost for t in order], what, seconds=True, enabled=self.settings.progress and bool(order))
         index = {t.key: i for i, t in enumerate(order)}
-        try:
-            runner = self._run_serial if self.client is None else self._run_dask
-            for record in runner(order, shared):
-                bar.update(1)
-                key = record.get("key", "")
-                status = "" if record.get("status", "ok") == "ok" else f" [{record.get('status')}]"
-                stages.done(index.get(key, len(stages.finished)), f"{_short(key)}{status}")
-                yield record
-            if order:
-                stages.finish()
-        finally:
-            bar.close()
-
-    def _bar(self, total: int, description: str):
-        from tqdm.auto import tqdm
-
-        return tqdm(total=total, desc=description, unit="task", disable=not self.settings.progress, leave=False)
+        runner = self._run_serial if self.client is None else self._run_dask
+        for record in runner(order, shared):
+            key, status = record.get("key", ""), record.get("status", "ok")
+            stages.done(index.get(key, len(stages.finished)), task_label(key, status))
+            yield record
+        stages.finish()
 
     def _run_serial(self, tasks: Sequence[SweepTask], shared: dict[str, SharedInput]) -> Iterator[dict]:
         values: dict[str, Any] = {}
