@@ -217,9 +217,8 @@ def _remove_own_temporaries(out, pid: int | None = None) -> None:
         return
     target = Path(out).expanduser().absolute()
     pattern = f".{target.name}.tmp-{os.getpid() if pid is None else pid}-*"
-    for _ in range(3):  # the worker may still be writing into one: sweep again
-        for tmp in target.parent.glob(pattern):
-            shutil.rmtree(tmp, ignore_errors=True)
+    for tmp in target.parent.glob(pattern):
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def _supervise(args) -> int:
