@@ -9,9 +9,10 @@
 
 Each command's CPU time is the user + system time of its process and the processes it waited for
 (``os.wait4``), so the machine's other load does not count; the wall time does depend on it.
-Measured on the 2-core development machine, shared (load 2–4): demo --quick 29.2 s (77.5 s before),
-demo 88.2 s (152.9 s), smallest compare 10.5 s (136 s with the exact JEKFs; 29 min in the issue),
-outputs of one identify 1.1 s (8.2 s).
+Measured on the 2-core development machine (load ~2), before (main at a6cc0a3) -> after:
+demo --quick 77.2 -> 27.3 s, demo 133.9 -> 81.8 s, smallest compare 91.5 -> 8.4 s (90.5 s with the
+exact JEKFs; 29 min in the issue), outputs of one identify 8.2 -> 1.2 s. CPU times rise ~1.5x when
+the machine is crowded (load 5: demo --quick 29-30 s).
 
 Usage::
 
