@@ -203,9 +203,10 @@ eigen-decomposition that holds the interpreter's lock for minutes). Run from the
 (``main()`` without arguments) they run in a child process that the main process watches: a
 signal ends the child at once, its temporary output directories are removed and the main process
 reports it, within a second whatever the child is doing. Called in-process (``main([...])``:
-tests, embedding) and for the other commands (``compare``, ``sweep``: a dask client; ``follow``:
-its own handlers; ``calibrate``, ``design-sensors``: their ``--write-problem`` files) the work runs
-in this process, where a signal is honoured between calls."""
+tests, embedding), for streams (``identify --follow``, ``--data -``: their own handlers keep every
+estimate on a signal) and for the other commands (``compare``, ``sweep``: a dask client;
+``calibrate``, ``design-sensors``: their ``--write-problem`` files) the work runs in this process,
+where a signal is honoured between calls."""
 
 
 def _remove_own_temporaries(out, pid: int | None = None) -> None:
@@ -301,7 +302,8 @@ def main(argv: list[str] | None = None) -> int:
     _RECEIVED.clear()
     old = _install_handlers()
     main_thread = threading.current_thread() is threading.main_thread() and bool(old)
-    supervised = args.command in SUPERVISED and main_thread and argv is None
+    streaming = getattr(args, "follow", None) or getattr(args, "data", None) == "-"  # its own handlers
+    supervised = args.command in SUPERVISED and main_thread and argv is None and not streaming
     try:
         if supervised and hasattr(os, "fork") and not os.environ.get("WINGOPT_NO_FORK"):
             return _supervise(args)
