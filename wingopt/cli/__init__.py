@@ -211,15 +211,22 @@ where a signal is honoured between calls."""
 
 def _remove_own_temporaries(out, pid: int | None = None) -> None:
     """Remove the temporary directories process ``pid`` (default this one) made for ``out``
-    (``.NAME.tmp-PID-*``, :class:`~wingopt.results.ResultDirectory`)."""
+    (``.NAME.tmp-PID-*``, :class:`~wingopt.results.ResultDirectory`); an earlier result it had moved
+    aside (``.NAME.old-PID``) goes back in place."""
     import shutil
 
     if not out or str(out) == "-":
         return
     target = Path(out).expanduser().absolute()
-    pattern = f".{target.name}.tmp-{os.getpid() if pid is None else pid}-*"
-    for tmp in target.parent.glob(pattern):
+    pid = os.getpid() if pid is None else pid
+    for tmp in target.parent.glob(f".{target.name}.tmp-{pid}-*"):
         shutil.rmtree(tmp, ignore_errors=True)
+    old = target.parent / f".{target.name}.old-{pid}"  # killed between the two renames of a commit
+    if old.is_dir() and not old.is_symlink():
+        if target.exists():
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(old, target)  # the earlier results back in place
 
 
 def _supervise(args) -> int:
