@@ -1,19 +1,53 @@
 """The demo end to end (quick configuration): outputs, summary numbers, and the report in a browser."""
 
 import json
+import os
 import re
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
-from wingopt.cli import main
 from wingopt.results.browser import find_chromium, open_in_chromium
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
 def demo_dir(tmp_path_factory):
-    out = tmp_path_factory.mktemp("demo") / "wingopt-demo"
-    assert main(["demo", "--quick", "--out", str(out), "--quiet"]) == 0
+    """``python -m wingopt demo --quick`` with stderr a file (not a terminal), as CI and nohup run it."""
+    base = tmp_path_factory.mktemp("demo")
+    out = base / "wingopt-demo"
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+    with open(base / "stderr.txt", "w") as err:
+        done = subprocess.run(
+            [sys.executable, "-m", "wingopt", "demo", "--quick", "--out", str(out)],
+            env=env, cwd=ROOT, stdout=subprocess.PIPE, stderr=err, text=True, timeout=1200,
+        )  # fmt: skip
+    assert done.returncode == 0, (base / "stderr.txt").read_text()
     return out
+
+
+def test_demo_stage_lines_on_a_piped_stderr(demo_dir):
+    lines = (demo_dir.parent / "stderr.txt").read_text().splitlines()
+    stages = [ln for ln in lines if re.match(r"wingopt demo: \[\d+/21\] ", ln)]
+    assert lines[0].startswith("wingopt demo: demo --quick, 21 stages: about ")
+    assert len(stages) == 21
+    assert stages[0].startswith("wingopt demo: [1/21] morph twist: QP (0 s so far, about ")
+    assert "identify L1: mhe" in stages[9] and "real membrane: fvk" in stages[19]
+    assert all(re.search(r"\(\d+(\.\d+)? (s|min) so far, about \d+(\.\d+)? (s|min) left\)$", ln) for ln in stages)
+    assert re.fullmatch(r"wingopt demo: demo --quick, 21 stages: done in \d+(\.\d+)? (s|min)", lines[-1])
+
+
+def test_demo_overlays_the_mhe_and_the_jekfs(demo_dir):
+    for load in ("L1", "L2", "L3"):
+        png = demo_dir / "identify" / f"{load}-mhe-vs-jekf.png"
+        assert png.is_file() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
+    assert "L1-mhe-vs-jekf.png" not in (demo_dir / "report.html").read_text()  # inlined, not linked
+    text = (demo_dir / "report.html").read_text()
+    assert all(f"<figcaption>{load}: lift of the MHE and the JEKFs" in text for load in ("L1", "L2", "L3"))
 
 
 def test_demo_writes_every_run_and_the_report(demo_dir):

@@ -19,6 +19,8 @@ import pkgutil
 import re
 import signal
 import sys
+import threading
+from pathlib import Path
 
 from wingopt import __version__
 from wingopt.errors import InputError, SolverError
@@ -132,6 +134,8 @@ class _Lines(logging.Formatter):
                 # A warning an engine logged itself names its module, as the workflow's name their check.
                 msg = f"[{record.name.removeprefix('wingopt.')}] {msg}"
             return f"wingopt {self.command}: {level}: {msg}"
+        if record.name.startswith("wingopt.progress"):  # stage lines: the command's own voice
+            return f"wingopt {self.command}: {one_line(record.getMessage())}"
         return f"wingopt {self.command}: {record.name.removeprefix('wingopt.')}: {one_line(record.getMessage())}"
 
 
@@ -159,6 +163,9 @@ def _configure_logging(args) -> None:
     root.addHandler(handler)
     root.setLevel(max(level, logging.WARNING))  # other libraries: warnings and errors only
     logging.getLogger("wingopt").setLevel(level)
+    # Stage lines and time estimates (wingopt.progress): shown unless --quiet, terminal or not.
+    progress_level = logging.ERROR if level >= logging.ERROR else min(level, logging.INFO)
+    logging.getLogger("wingopt.progress").setLevel(progress_level)
 
 
 class Terminated(BaseException):
@@ -194,6 +201,103 @@ def _install_handlers() -> dict:
     return old
 
 
+SUPERVISED = frozenset({"morph", "identify", "demo", "modes", "gains"})
+"""Commands whose work may sit in one long C call (a sparse factorisation, a dense Riccati or
+eigen-decomposition that holds the interpreter's lock for minutes). Run from the console script
+(``main()`` without arguments) they run in a child process that the main process watches: a
+signal ends the child at once, its temporary output directories are removed and the main process
+reports it, within a second whatever the child is doing. Called in-process (``main([...])``:
+tests, embedding), for streams (``identify --follow``, ``--data -``: their own handlers keep every
+estimate on a signal) and for the other commands (``compare``, ``sweep``: a dask client;
+``calibrate``, ``design-sensors``: their ``--write-problem`` files) the work runs in this process,
+where a signal is honoured between calls."""
+
+
+def _remove_own_temporaries(out, pid: int | None = None) -> None:
+    """Remove the temporary directories process ``pid`` (default this one) made for ``out``
+    (``.NAME.tmp-PID-*``, :class:`~wingopt.results.ResultDirectory`); an earlier result it had moved
+    aside (``.NAME.old-PID``) goes back in place."""
+    import shutil
+
+    if not out or str(out) == "-":
+        return
+    target = Path(out).expanduser().absolute()
+    pid = os.getpid() if pid is None else pid
+    for tmp in target.parent.glob(f".{target.name}.tmp-{pid}-*"):
+        shutil.rmtree(tmp, ignore_errors=True)
+    old = target.parent / f".{target.name}.old-{pid}"  # killed between the two renames of a commit
+    if old.is_dir() and not old.is_symlink():
+        if target.exists():
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(old, target)  # the earlier results back in place
+
+
+def _supervise(args) -> int:
+    """Run the command in a forked child and wait; on SIGINT/SIGTERM/SIGHUP kill the child, remove
+    its temporary output directories and report the signal (:data:`SUPERVISED`)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    pid = os.fork()
+    if pid == 0:  # the child: the work; the parent alone answers signals
+        code = EXIT_INTERNAL
+        try:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole group: the parent acts
+            signal.signal(signal.SIGHUP, signal.SIG_IGN)
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            _die_with_parent()
+            code = _run(args)
+        finally:
+            _exit_now(code)
+    name = f"wingopt {args.command}"
+    try:
+        _, status = os.waitpid(pid, 0)
+    except (KeyboardInterrupt, Terminated) as exc:
+        _kill(pid)
+        _remove_own_temporaries(getattr(args, "out", None), pid)
+        signum = exc.signum if isinstance(exc, Terminated) else signal.SIGINT
+        what = "interrupted (Ctrl-C)" if signum == signal.SIGINT else f"terminated by {signal.Signals(signum).name}"
+        _say(f"{name}: {what}; nothing written")
+        return 128 + signum
+    code = os.waitstatus_to_exitcode(status)
+    if code < 0:  # the child was killed (the out-of-memory killer, a signal sent to it alone)
+        _remove_own_temporaries(getattr(args, "out", None), pid)
+        _say(f"{name}: error: the run was killed by {signal.Signals(-code).name}; nothing written")
+        return 128 - code
+    return code
+
+
+def _die_with_parent() -> None:
+    """Linux: the child gets SIGKILL if the watching process dies (killed with -9 itself)."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError, TypeError):
+        pass
+
+
+def _kill(pid: int) -> None:
+    try:
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+    except (ProcessLookupError, ChildProcessError):
+        pass
+
+
+def _exit_now(code: int) -> None:
+    """End the (child) process with ``code`` at once, its output flushed."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    os._exit(code)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``wingopt`` console script; returns the exit code.
 
@@ -206,9 +310,22 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return EXIT_INPUT
     _configure_logging(args)
-    name = f"wingopt {args.command}"
     _RECEIVED.clear()
     old = _install_handlers()
+    main_thread = threading.current_thread() is threading.main_thread() and bool(old)
+    streaming = getattr(args, "follow", None) or getattr(args, "data", None) == "-"  # its own handlers
+    supervised = args.command in SUPERVISED and main_thread and argv is None and not streaming
+    try:
+        if supervised and hasattr(os, "fork") and not os.environ.get("WINGOPT_NO_FORK"):
+            return _supervise(args)
+        return _run(args)
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+
+
+def _run(args) -> int:
+    name = f"wingopt {args.command}"
     try:
         return int(args.func(args) or EXIT_OK)
     except InputError as exc:
@@ -248,9 +365,6 @@ def main(argv: list[str] | None = None) -> int:
             raise
         _say(f"{name}: internal error: {type(exc).__name__}: {exc}; please report it")
         return EXIT_INTERNAL
-    finally:
-        for s, h in old.items():
-            signal.signal(s, h)
 
 
 def _say(line: str) -> None:

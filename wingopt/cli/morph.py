@@ -68,6 +68,12 @@ def register(sub, common) -> None:
     p.add_argument(
         "--max-memory", metavar="SIZE", help="refuse runs estimated to need more (e.g. 4G; default: what is available)"
     )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help=f"start a run estimated to take longer than the limit ({resources.fmt_seconds(resources.MAX_SECONDS)} "
+        "of CPU); without it such a run is refused before any work",
+    )
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--out", required=True, help=OUT_HELP)
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
@@ -112,7 +118,14 @@ def _check(args) -> None:
 def run(args) -> int:
     _check(args)
     options = _options(args)
-    summary = morph_to_directory(
+    with resources.long_runs(args.force, "--force"):
+        summary = _morph(args, options)
+    _print(summary, args)
+    return 0
+
+
+def _morph(args, options) -> dict:
+    return morph_to_directory(
         args.problem,
         args.shape,
         args.method,
@@ -130,8 +143,6 @@ def run(args) -> int:
         plant=args.plant,
         **options,
     )
-    _print(summary, args)
-    return 0
 
 
 def _print(summary: dict, args) -> None:

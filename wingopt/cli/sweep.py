@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 
 from wingopt.errors import InputError
 
@@ -56,7 +55,7 @@ def engine_settings(args, workers: int | None, cluster: dict | None = None, retr
         scheduler=getattr(args, "scheduler", None),
         cluster=dict(cluster or {}),
         retries=retries,
-        progress=sys.stderr.isatty(),
+        progress=True,  # stage lines on stderr (wingopt.progress), terminal or not
     )
 
 

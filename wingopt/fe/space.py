@@ -71,6 +71,20 @@ def _intervals(basis: SplineBasis1D, a: float, b: float, breaks: Sequence[float]
     return e, lo, hi
 
 
+BASIS_CACHE_SIZE = 4
+"""Point sets whose basis matrices a :class:`TensorSpace` keeps (the most recent ones)."""
+
+BASIS_CACHE_MIN_POINTS = 4096
+"""Smaller point sets are evaluated afresh (cheap; not worth the memory)."""
+
+
+def _digest(a: np.ndarray) -> bytes:
+    import hashlib
+
+    digest = hashlib.blake2b(np.ascontiguousarray(a).view(np.uint8), digest_size=16).digest()
+    return digest + str(a.size).encode()
+
+
 @dataclass(frozen=True)
 class TensorSpace:
     """Tensor product of two :class:`SplineBasis1D` on ``[0, bx.length] x [0, by.length]``."""
@@ -146,13 +160,36 @@ class TensorSpace:
 
     # -- evaluation ---------------------------------------------------------------------
     def basis_matrix(self, x: np.ndarray, y: np.ndarray, dx: int = 0, dy: int = 0) -> sp.csr_matrix:
-        """Sparse ``(npts, n)``: derivative ``(dx, dy)`` of every basis function at points."""
+        """Sparse ``(npts, n)``: derivative ``(dx, dy)`` of every basis function at points.
+
+        Large point sets (a quadrature of a fine mesh: error metrics, plots) are cached by their
+        content, the last :data:`BASIS_CACHE_SIZE` per space: the same points evaluated again (the
+        error of every sample of a history on one truth mesh) cost a hash, not a rebuild. The
+        matrix returned is shared then: do not modify it in place.
+        """
         x = np.atleast_1d(np.asarray(x, dtype=float)).ravel()
         y = np.atleast_1d(np.asarray(y, dtype=float)).ravel()
         if x.shape != y.shape:
             raise InputError(f"x and y must have the same number of points, got {x.size} and {y.size}")
-        full = self._full_basis_matrix(x, y, dx, dy)
-        return (full @ self.transform).tocsr()
+        if x.size < BASIS_CACHE_MIN_POINTS:
+            return (self._full_basis_matrix(x, y, dx, dy) @ self.transform).tocsr()
+        key = (_digest(x), _digest(y), int(dx), int(dy))
+        cache = self._basis_cache
+        hit = cache.pop(key, None)
+        if hit is None:
+            hit = (self._full_basis_matrix(x, y, dx, dy) @ self.transform).tocsr()
+            while len(cache) >= BASIS_CACHE_SIZE:
+                cache.pop(next(iter(cache)))
+        cache[key] = hit  # most recent last
+        return hit
+
+    @cached_property
+    def _basis_cache(self) -> dict:
+        return {}
+
+    def __getstate__(self) -> dict:
+        # The basis cache stays behind (a space sent to a worker process carries no matrices).
+        return {k: v for k, v in self.__dict__.items() if k != "_basis_cache"}
 
     def local_basis(self, x: np.ndarray, y: np.ndarray, dx: int = 0, dy: int = 0):
         """The 16 non-zero full splines at each point: values ``(npts, 16)`` and full indices."""

@@ -60,10 +60,15 @@ __all__ = [
     "ComparisonPreset",
     "run_comparison",
     "LOADS",
+    "JEKF_MODES",
+    "write_overlays",
 ]
 
 LOADS = ("L1", "L2", "L3")
 """The load cases of the comparison."""
+
+JEKF_MODES = 60
+"""The JEKFs' default order in ``compare`` (the demo's): their lowest 60 of the estimator's modes."""
 
 
 def comparison_study(
@@ -149,7 +154,9 @@ class ComparisonPreset:
     ``seeds`` noise seeds from ``first_seed`` for the table (``table=False``: none) with
     ``methods``, the MHE's oracle lambda unless ``oracle=False``; the MHE's sign and band study over
     ``sign_seeds`` seeds at 5 % noise; the consistency study; the MHE's load space and state prior
-    (:class:`~wingopt.estimation.options.IdentifyOptions`); the truth's mesh.
+    (:class:`~wingopt.estimation.options.IdentifyOptions`); the truth's mesh; the JEKFs' order
+    ``jekf_modes`` (their lowest modes only, :data:`JEKF_MODES` by default, as the demo's; ``None``:
+    every mode, the exact filter, ~10x the CPU time).
     """
 
     loads: tuple[str, ...] = LOADS
@@ -164,9 +171,17 @@ class ComparisonPreset:
     load_space: str = "fixed"
     state_prior: str = "1"
     truth_mesh: tuple[int, int] = TRUTH_NODES
+    jekf_modes: int | None = JEKF_MODES
 
     def __post_init__(self) -> None:
         from wingopt.resources import LIMITS, check_count
+
+        if self.jekf_modes is not None and (
+            isinstance(self.jekf_modes, bool) or not isinstance(self.jekf_modes, int) or self.jekf_modes < 1
+        ):
+            raise InputError(f"jekf-order = {self.jekf_modes!r}: expected a positive number of modes or 'full'")
+        if self.jekf_modes is not None:
+            check_count("jekf-order", self.jekf_modes, "modes")
 
         for name, given, words in (
             ("loads", self.loads, ", ".join(LOADS)),
@@ -207,10 +222,13 @@ class ComparisonPreset:
         last = self.first_seed + self.seeds - 1
         seeds = f" ({self.first_seed}–{last})" if self.first_seed else ""
         prior = "" if self.state_prior == "1" else ", state prior " + self.state_prior
+        order = ""
+        if any(m.startswith("jekf") for m in self.methods):
+            order = ", JEKF " + ("exact (every mode)" if self.jekf_modes is None else f"{self.jekf_modes} modes")
         return (
             f"### Final errors, mean (min–max) over {self.seeds} noise seeds{seeds}; "
             f"truth {self.truth_mesh[0]}x{self.truth_mesh[1]}, "
-            f"estimator {problem.nodes[0]}x{problem.nodes[1]}, MHE load space {self.load_space}{prior}"
+            f"estimator {problem.nodes[0]}x{problem.nodes[1]}, MHE load space {self.load_space}{prior}{order}"
         )
 
 
@@ -260,8 +278,11 @@ def run_comparison(
     for method in preset.methods or ("mhe",):
         knobs = {"truth": f"--truth-mesh {preset.truth_mesh[0]}x{preset.truth_mesh[1]}"}
         resources.check(
-            resources.estimate_identify(prob.nodes, samples, truth_nodes=preset.truth_mesh, method=method, knobs=knobs)
-        )
+            resources.estimate_identify(
+                prob.nodes, samples, truth_nodes=preset.truth_mesh, method=method, knobs=knobs,
+                jekf_modes=preset.jekf_modes,
+            )
+        )  # fmt: skip
     owner = OwnedDirectory(out, inputs=[*inputs, ("--doc", doc)])
     out = owner.path
     rec_path = out / "records.jsonl"
@@ -278,8 +299,10 @@ def run_comparison(
     # One task list: the table's runs (with the oracle), the sign study's not already in the table,
     # and the consistency study's; shared truths and models are computed once for all of them.
     table_runs, sign_runs = preset.runs()
-    table_tasks, shared = protocol_tasks(prob, table_runs, settings, truth, preset.oracle)
-    sign_tasks, shared2 = protocol_tasks(prob, sign_runs, settings, truth, False)
+    table_tasks, shared = protocol_tasks(
+        prob, table_runs, settings, truth, preset.oracle, jekf_modes=preset.jekf_modes, histories=True
+    )
+    sign_tasks, shared2 = protocol_tasks(prob, sign_runs, settings, truth, False, jekf_modes=preset.jekf_modes)
     cons_tasks, shared3 = consistency_tasks(prob, settings=settings, truth_nodes=truth)
     cache = out / "consistency.json"
     cons_rows = json.loads(cache.read_text()) if resume and cache.exists() and owner.owns(cache.name) else None
@@ -317,6 +340,13 @@ def run_comparison(
             owner.write_json(cache.name, cons_rows)
         report["consistency"] = cons_rows
         sections.append(consistency_markdown(cons_rows))
+    if preset.table:
+        report["overlays"] = write_overlays(owner, [by[t.key] for t in table_tasks])
+        if report["overlays"]:
+            sections.append(
+                "Lift histories of the MHE and the JEKFs with their 1-sigma bands and the true lift (lowest noise, "
+                f"first seed), in the output directory: {', '.join(report['overlays'])}."
+            )
     report["wall_s"] = time.perf_counter() - t0
     sections.insert(0, checklist_markdown(report))
     text = "\n\n".join(s for s in sections if s) + "\n"
@@ -325,3 +355,45 @@ def run_comparison(
     if doc:
         write_text_atomic(doc, doc_header(str(problem), preset) + text, what="doc", force=force, inputs=inputs)
     return report, text
+
+
+OVERLAY_NAMES = {"mhe": "MHE", "jekf-tuned": "tuned JEKF", "jekf-seed": "seed JEKF"}
+
+
+def write_overlays(owner: OwnedDirectory, records: Sequence[dict]) -> list[str]:
+    """``overlay-LOAD.png``: the lift histories of the MHE and the JEKFs, with their 1-sigma bands and
+    the true lift, on the first table case (lowest noise, first seed) of every load that has the MHE
+    and a JEKF. Returns the names written (records without histories, pre-overlay ones, are skipped)."""
+    from wingopt.plots.identify import plot_overlay
+
+    written = []
+    by_case: dict[tuple, dict[str, dict]] = {}
+    for rec in records:
+        if rec.get("status", "ok") == "ok" and rec.get("history"):
+            by_case.setdefault((rec["load"], rec["noise"], rec["seed"]), {})[rec["method"]] = rec
+    for load in dict.fromkeys(k[0] for k in by_case):
+        cases = sorted(k for k in by_case if k[0] == load and "mhe" in by_case[k] and len(by_case[k]) > 1)
+        if not cases:
+            continue
+        _, noise, seed = cases[0]
+        runs = by_case[cases[0]]
+        curves = []
+        for method, label in OVERLAY_NAMES.items():
+            rec = runs.get(method)
+            if rec is None:
+                continue
+            h = rec["history"]
+            std = None if h.get("lift_std_N") is None else [float("nan") if v is None else v for v in h["lift_std_N"]]
+            order = rec.get("params", {}).get("jekf_modes")
+            curves.append((label + (f", {order} modes" if order else ""), h["t"], h["lift_N"], std))
+        title = f"{load}, {100 * noise:g} % noise, seed {seed}"
+        fig = plot_overlay(None, curves, None, runs["mhe"]["true_lift"], title)
+        name = f"overlay-{load}.png"
+
+        def fill(tmp: Path, fig=fig) -> None:
+            fig.tight_layout()
+            fig.savefig(tmp, format="png", dpi=110)
+
+        owner.write(name, fill)
+        written.append(name)
+    return written

@@ -14,8 +14,8 @@ self-contained ``report.html``.
 
 from __future__ import annotations
 
+import logging
 import platform
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,11 +23,12 @@ from pathlib import Path
 from wingopt import __version__
 from wingopt.errors import InputError
 from wingopt.estimation.options import IdentifyOptions
+from wingopt.progress import Stages
 from wingopt.results import ResultDirectory, write_json
 from wingopt.results.report import Report
 from wingopt.workflows.demo_real import REAL_MODELS, REAL_PRESTRAIN, real_rows, real_section, run_real_membrane
 
-__all__ = ["DemoConfig", "run_demo", "SEED_TABLE_5_4", "SEED_TABLE_6_2", "SEED_JEKF_1PCT"]
+__all__ = ["DemoConfig", "run_demo", "overlay", "stage_costs", "SEED_TABLE_5_4", "SEED_TABLE_6_2", "SEED_JEKF_1PCT"]
 
 SHAPES = ("twist", "camber", "bending")
 LOADS = ("L1", "L2", "L3")
@@ -58,12 +59,31 @@ class DemoConfig:
         return cls(plate_nodes=(7, 31), t_end=0.5, identify_t_end=0.5, jekf_modes=30, real_truth_nodes=(33, 17))
 
 
-def _progress(total: int, enabled: bool | None):
-    from tqdm.auto import tqdm
+def stage_costs(cfg: DemoConfig) -> list[tuple[str, float]]:
+    """The demo's stages in order, each with its a-priori cost: CPU seconds measured on one core for
+    the full (88 s in all) and the quick (29 s) configuration; the unlimited LQR's stage includes
+    writing the shape's outputs and figures. The progress lines rescale them as stages finish."""
+    quick = cfg.plate_nodes[0] * cfg.plate_nodes[1] <= 7 * 31
+    morph = (1.0, 0.5, 2.5) if quick else (4.0, 3.0, 5.0)
+    ident = (
+        {"mhe": 1.5, "jekf-seed": 2.0, "jekf-tuned": 1.0}
+        if quick
+        else {"mhe": 2.5, "jekf-seed": 4.0, "jekf-tuned": 2.0}
+    )
+    real = {"linear": 5.0, "fvk": 2.0} if quick else {"linear": 14.0, "fvk": 5.0}
+    stages: list[tuple[str, float]] = []
+    for shape in SHAPES:
+        stages += [(f"morph {shape}: QP", morph[0]), (f"morph {shape}: saturated LQR", morph[1])]
+        stages += [(f"morph {shape}: seed LQR (unlimited)", morph[2])]
+    for load in LOADS:
+        stages += [(f"identify {load}: {method}", ident[method]) for method in IDENTIFY_METHODS]
+    if cfg.real_membrane:
+        stages += [(f"real membrane: {m}", real.get(m, 5.0)) for m in REAL_MODELS]
+    stages.append(("reference tables", 0.5 if quick else 1.0))
+    return stages
 
-    if enabled is None:
-        enabled = sys.stderr.isatty()
-    return tqdm(total=total, disable=not enabled, desc="wingopt demo", unit="step", leave=False)
+
+IDENTIFY_METHODS = ("mhe", "jekf-seed", "jekf-tuned")
 
 
 def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = None, progress: bool | None = None):
@@ -76,18 +96,16 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
     config : DemoConfig, optional
         Meshes, durations, loads (default: the full demo).
     progress : bool, optional
-        Show a progress bar (default: when writing to a terminal).
+        ``False``: no stage lines. Otherwise each stage is announced, with the time so far and an
+        estimate of the rest, on the ``wingopt.progress`` logger (:mod:`wingopt.progress`: the
+        command line shows it on stderr; a library caller sees it once logging is configured).
 
     Returns
     -------
     dict
         The demo's summary (also written as ``summary.json``).
     """
-    from wingopt.membrane import MembraneModel
-    from wingopt.plate import PlateModel
     from wingopt.problem import load_problem
-    from wingopt.workflows.identify import identify, write_identify_outputs
-    from wingopt.workflows.morph import morph, write_morph_outputs
 
     if config is not None and not isinstance(config, DemoConfig):
         raise InputError(f"config = {config!r}: expected a DemoConfig (e.g. DemoConfig.quick()) or None")
@@ -99,22 +117,39 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
     plate = load_problem("plate")
     membrane = load_problem("membrane")
     summary: dict = {"version": __version__, "config": cfg.__dict__, "morph": {}, "identify": {}, "tables": {}}
-    bar = _progress(len(SHAPES) * 3 + len(LOADS) * 3 + 2 + len(REAL_MODELS) * cfg.real_membrane, progress)
+    costs = stage_costs(cfg)
+    what = f"demo{' --quick' if cfg == DemoConfig.quick() else ''}, {len(costs)} stages"
+    stages = Stages([c for _, c in costs], what, seconds=True, enabled=progress is not False)
+    inner = logging.getLogger("wingopt.progress.identify")  # the demo's own lines say which run is going
+    inner_level = inner.level
+    inner.setLevel(logging.WARNING)
+    try:
+        _run(cfg, writer, stages, summary, plate, membrane, t_start)
+    finally:
+        inner.setLevel(inner_level)
+    stages.finish()
+    return summary
+
+
+def _run(cfg, writer, stages, summary, plate, membrane, t_start) -> None:
+    from wingopt.membrane import MembraneModel
+    from wingopt.plate import PlateModel
+    from wingopt.workflows.identify import identify, write_identify_outputs
+    from wingopt.workflows.morph import morph, write_morph_outputs
+
     with writer as tmp:
         # -- 1. morphing ----------------------------------------------------------------------
         for shape in SHAPES:
-            bar.set_description(f"morph {shape}: QP")
+            stages.start(f"morph {shape}: QP")
             qp = morph(plate, shape, "qp", t_end=cfg.t_end, nodes=cfg.plate_nodes)
-            bar.update()
-            bar.set_description(f"morph {shape}: saturated LQR")
+            stages.start(f"morph {shape}: saturated LQR")
             lo, hi = qp.vmin, qp.vmax
             lqr_sat = morph(plate, shape, "lqr", vmin=lo, vmax=hi, t_end=cfg.t_end, nodes=cfg.plate_nodes)
-            bar.update()
-            bar.set_description(f"morph {shape}: seed LQR (unlimited)")
+            stages.start(f"morph {shape}: seed LQR (unlimited)")
             lqr_free = morph(plate, shape, "lqr", t_end=cfg.t_end, nodes=cfg.plate_nodes)
-            bar.update()
             write_morph_outputs(qp, tmp / "morph" / shape, compare_with=lqr_sat)
-            write_morph_outputs(lqr_free, tmp / "morph" / f"{shape}-lqr-unlimited")
+            # The report shows the QP's figures; the unlimited LQR's run keeps its data, not its figures.
+            write_morph_outputs(lqr_free, tmp / "morph" / f"{shape}-lqr-unlimited", plots=False)
             summary["morph"][shape] = {
                 "qp": qp.summary(),
                 "lqr_saturated": lqr_sat.summary(),
@@ -123,9 +158,10 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
         # -- 2. load identification -------------------------------------------------------------
         for load in LOADS:
             summary["identify"][load] = {}
-            for method in ("mhe", "jekf-seed", "jekf-tuned"):
-                bar.set_description(f"identify {load}: {method}")
-                run = identify(
+            runs = {}
+            for method in IDENTIFY_METHODS:
+                stages.start(f"identify {load}: {method}")
+                run = runs[method] = identify(
                     membrane,
                     load=load,
                     noise_percent=100 * cfg.noise,
@@ -136,19 +172,18 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
                 )
                 write_identify_outputs(run, tmp / "identify" / f"{load}-{method}", plots=(method == "mhe"))
                 summary["identify"][load][method] = run.summary()
-                bar.update()
+            overlay(runs, tmp / "identify" / f"{load}-mhe-vs-jekf.png", f"{load}, {100 * cfg.noise:g} % noise")
         # -- 2b. a real membrane: FvK truth, prestrain off the file's ---------------------------------
         if cfg.real_membrane:
-            summary["real_membrane"] = run_real_membrane(membrane, cfg, tmp / "real-membrane", bar)
+            summary["real_membrane"] = run_real_membrane(membrane, cfg, tmp / "real-membrane", stages.start)
         # -- 3. reference tables -----------------------------------------------------------------
-        bar.set_description("reference tables")
+        stages.start("reference tables")
         mem = MembraneModel.from_problem(membrane, (25, 13))
         summary["tables"]["membrane_6_2"] = {
             "mesh": [25, 13],
             "ours": mem.frequencies_hz(4),
             "seed": SEED_TABLE_6_2[(25, 13)],
         }
-        bar.update()
         pm = PlateModel.from_problem(plate, cfg.plate_nodes)
         seed_plate = SEED_TABLE_5_4.get(tuple(cfg.plate_nodes))
         summary["tables"]["plate_5_4"] = {
@@ -156,12 +191,34 @@ def run_demo(out_dir: str | Path = "wingopt-demo", config: DemoConfig | None = N
             "ours": pm.frequencies_hz(4),
             "seed": seed_plate,
         }
-        bar.update()
         summary["wall_s"] = time.perf_counter() - t_start
         write_json(tmp / "summary.json", summary)
         _report(tmp, summary, cfg).write(tmp / "report.html")
-    bar.close()
-    return summary
+
+
+def overlay(runs: dict, path: Path, title: str = "") -> Path | None:
+    """The MHE's and the JEKF's lift histories with their bands and the truth on one plot (``path``).
+
+    ``runs``: :class:`~wingopt.workflows.identify.IdentifyRun` by method; the MHE and each JEKF
+    present are drawn. Returns ``path`` (``None`` when fewer than two estimators are given).
+    """
+    from wingopt.plots.identify import plot_overlay
+
+    names = {"mhe": "MHE", "jekf-tuned": "tuned JEKF", "jekf-seed": "seed JEKF", "jekf": "JEKF"}
+    curves = [
+        (names.get(m, m), r.result.t, r.result.lift, r.result.lift_std)
+        for m, r in runs.items()
+        if m in names and r is not None
+    ]
+    if len(curves) < 2:
+        return None
+    case = next((r.case for r in runs.values() if r is not None and r.case is not None), None)
+    truth_t = truth = None
+    if case is not None:
+        truth_t, truth = case.trajectory.t, case.lift_history
+    path.parent.mkdir(parents=True, exist_ok=True)
+    plot_overlay(path, curves, truth_t, truth, title)
+    return path
 
 
 # -- report ---------------------------------------------------------------------------------------
@@ -279,6 +336,9 @@ def _report(tmp: Path, summary: dict, cfg: DemoConfig) -> Report:
         "Final relative L2 load error (lower is better)",
     )  # fmt: skip
     for load in summary["identify"]:
+        over = tmp / "identify" / f"{load}-mhe-vs-jekf.png"
+        if over.exists():
+            rep.figure(over, f"{load}: lift of the MHE and the JEKFs with their 1-sigma bands, and the truth")
         d = tmp / "identify" / f"{load}-mhe"
         for name, cap in (("load_field.png", "estimated vs true load"), ("lift.png", "lift history (1-sigma band)"),
                           ("errors.png", "error histories")):  # fmt: skip

@@ -19,13 +19,16 @@ REAL_MODELS = ("linear", "fvk")
 """The real-membrane case: the seed's linear MHE beside the realistic estimator with the FvK membrane."""
 
 
-def run_real_membrane(membrane, cfg, out: Path, bar) -> dict:
-    """Identify L1 on FvK truth with each of :data:`REAL_MODELS`; outputs under ``out/MODEL``."""
+def run_real_membrane(membrane, cfg, out: Path, stage=None) -> dict:
+    """Identify L1 on FvK truth with each of :data:`REAL_MODELS`; outputs under ``out/MODEL``.
+
+    ``stage``: called with each run's label as it starts (the demo's progress lines)."""
     from wingopt.workflows.identify import identify, write_identify_outputs
 
     summary = {}
     for model in REAL_MODELS:
-        bar.set_description(f"real membrane: {model}")
+        if stage is not None:
+            stage(f"real membrane: {model}")
         run = identify(
             membrane,
             load="L1",
@@ -39,7 +42,6 @@ def run_real_membrane(membrane, cfg, out: Path, bar) -> dict:
         )
         write_identify_outputs(run, out / model)
         summary[model] = run.summary()
-        bar.update()
     return summary
 
 

@@ -37,6 +37,7 @@ from wingopt.measurements.dic import DICFrames
 from wingopt.membrane import MembraneModel, TruthRecord
 from wingopt.membrane.loads import LOAD_CASES
 from wingopt.problem import load_problem
+from wingopt.progress import fmt_duration
 from wingopt.results import ResultDirectory, write_csv, write_json
 from wingopt.status import RunStatus
 from wingopt.validate import check_nodes, check_number, check_seed
@@ -46,6 +47,7 @@ from wingopt.workflows.protocols import TRUTH_NODES, check_truth_settings, simul
 from wingopt.workflows.studies import evaluate, load_field, protocol_sign
 
 log = logging.getLogger(__name__)
+progress = logging.getLogger("wingopt.progress.identify")  # stage lines (wingopt.progress), shown by the CLI
 
 __all__ = ["IdentifyRun", "identify", "write_identify_outputs", "LOAD_GRID"]
 
@@ -269,12 +271,14 @@ def identify(
         fraction = NoiseLevel.from_percent(noise_percent).fraction
         sanity.check_duration(t_end, problem.identification.dt)
         samples, truth_mesh = int(round(t_end / problem.identification.dt)) + 1, truth_nodes or problem.nodes
-    resources.check(
+    est = resources.check(
         resources.estimate_identify(problem.nodes, samples, truth_nodes=truth_mesh, method=spec.method), max_memory
     )
     membrane = MembraneModel.from_problem(problem)
     case, report, protocol, frames = None, None, {}, None
     if load is not None:
+        progress.info("simulating the %s truth of %s on %dx%d, %d samples (the whole run: about %s)", truth,
+                      getattr(load, "name", load), *truth_mesh, samples, fmt_duration(est.seconds))  # fmt: skip
         case = simulate_case(
             problem, load, fraction, seed, truth_nodes, t_end,
             truth=truth, prestrain=truth_prestrain, damping=truth_damping, gust=gust, tell_noise=False,
@@ -313,6 +317,7 @@ def identify(
     prior = opts.initial_load if opts.initial_load is not None else problem.identification.initial_load
     warnings = sanity.sourced("data check", sanity.record_checks(membrane, meas, prior))
     t0 = time.perf_counter()
+    progress.info("%s on %d samples of %d sensors", spec.label, meas.count, len(meas.sensor_names))
     result = build(spec, membrane, opts, truth=case, settings=settings, frames=frames).run(meas)
     wall = time.perf_counter() - t0
     warnings += sanity.sourced("fit check", sanity.fit_checks(membrane, meas, result, sanity.used_sigma(meas, result)))
@@ -353,6 +358,7 @@ def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = 
     X, Y = np.meshgrid(xs, ys)
     Pg = run.load_field()(X, Y)
     inputs = [("--data", (run.data_report or {}).get("file")), ("problem", getattr(problem, "source", None))]
+    progress.info("writing the outputs%s (the estimate took %s)", " and figures" * plots, fmt_duration(run.wall_s))
     with ResultDirectory(out_dir, inputs=inputs) as tmp:
         write_json(tmp / "summary.json", to_jsonable(run.summary()))
         write_csv(tmp / "load.csv", ["x", "y", "pressure_Pa"], zip(X.ravel(), Y.ravel(), Pg.ravel()))
@@ -366,7 +372,7 @@ def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = 
 
 
 def _plots(tmp: Path, run: IdentifyRun, X, Y, Pg) -> None:
-    from wingopt.plots.identify import plot_errors, plot_lift, plot_load_field
+    from wingopt.plots.identify import error_histories, plot_errors, plot_lift, plot_load_field
 
     result, case = run.result, run.case
     title = f"{run.protocol.get('load_case', 'data')} · {run.method}"
@@ -386,12 +392,6 @@ def _plots(tmp: Path, run: IdentifyRun, X, Y, Pg) -> None:
 
         plot_sensor_means(tmp / "misfit.png", result.info, run.model.problem.sensor_names, title)
     if case is not None:
-        # Error histories on a subsample of the times (each needs two integrals on the truth mesh).
         idx = np.unique(np.linspace(0, result.t.size - 1, 41).astype(int))
-        t_case = case.trajectory.t
-        le, de = [], []
-        for k in idx:
-            kt = int(np.argmin(np.abs(t_case - result.t[k])))
-            le.append(case.load_error(run.load_field(k)))
-            de.append(case.deflection_error(run.model.field(result.deflection[k]), kt))
-        plot_errors(tmp / "errors.png", result.t[idx], np.array(le), np.array(de), title, first)
+        le, de = error_histories(case, result, run.model, idx)
+        plot_errors(tmp / "errors.png", result.t[idx], le, de, title, first)

@@ -114,6 +114,32 @@ def simulate_case(
         truth_nodes = check_nodes(truth_nodes, "truth_nodes")
     check_number("t_end", t_end, positive=True)
     check_number("noise_fraction", noise_fraction, lo=0.0, hi=1.0)
+    key = (problem, load, noise_fraction, seed, truth_nodes, t_end, truth, prestrain, damping, gust, start, dt)
+    key += (substeps,)
+    try:
+        hash(key)
+    except TypeError:  # a load or gust that is not hashable: simulated afresh
+        key = None
+    if seed is None:  # fresh noise every time
+        key = None
+    rec = _RECENT.get(key) if key is not None else None
+    if rec is None:
+        rec = _simulate(problem, load, noise_fraction, seed, truth_nodes, t_end, truth, prestrain, damping, gust,
+                        start, dt, substeps)  # fmt: skip
+        if key is not None:
+            _RECENT.clear()  # one record kept: the runs of one case follow each other (demo, studies)
+            _RECENT[key] = rec
+    return rec.told() if tell_noise else rec
+
+
+_RECENT: dict = {}
+"""The last simulated record (a :class:`TruthRecord` is immutable; its noise is seeded): the demo's
+three estimators on one load, or a linear and a realistic estimator on one FvK truth, share it."""
+
+
+def _simulate(
+    problem, load, noise_fraction, seed, truth_nodes, t_end, truth, prestrain, damping, gust, start, dt, substeps
+):
     params = MembraneParameters.nominal(problem, prestrain, damping)
     fwd = forward_model(problem, truth, nodes=truth_nodes or problem.nodes, params=params, substeps=substeps)
     protocol = RecordProtocol(
@@ -124,5 +150,4 @@ def simulate_case(
         seed=seed,
         load_factor=None if gust is None else gust.factor,
     )
-    rec = simulate_truth(fwd, load, protocol)
-    return rec.told() if tell_noise else rec
+    return simulate_truth(fwd, load, protocol)

@@ -91,6 +91,10 @@ class JointEKF:
             # q = Phi^T (rho h M) z ;  g = Phi^T M f ;  f = rho h Phi g
             self._to_q = np.asarray((model.mass @ self._phi).T)
             self._to_g = np.asarray((model.gram @ self._phi).T)
+            # The sensors in modal coordinates: s_i = z^T C_i z = q^T G_i q with G_i = Phi^T C_i Phi
+            # (r x r, symmetric): h and its Jacobian 2 G_i q per sample without the n-sized products.
+            G = np.stack([np.asarray(self._phi.T @ (C @ self._phi)) for C in self.sensors.matrices])
+            self._G = 0.5 * (G + G.transpose(0, 2, 1))
             self.size = 3 * self.r
             self._qidx = slice(0, self.size, 3)
             self._vidx = slice(1, self.size, 3)
@@ -263,12 +267,17 @@ class JointEKF:
             self.last_nis = float("nan")
             self.last_innovation = np.full(self.p, np.nan)
             return False
-        z = self._deflection(self.x)
-        mats = [C for C, use in zip(self.sensors.matrices, ok) if use]
-        Cz = np.stack([C @ z for C in mats])  # (m, n)
-        h = Cz @ z
-        jac = 2.0 * Cz
-        Hq = jac @ self._phi if self.settings.structure == "modal" else jac  # (m, r)
+        if self.settings.structure == "modal":
+            q = self.x[self._qidx]
+            Gq = (self._G if ok.all() else self._G[ok]) @ q  # (m, r)
+            h = Gq @ q
+            Hq = 2.0 * Gq  # (m, r)
+        else:
+            z = self._deflection(self.x)
+            mats = [C for C, use in zip(self.sensors.matrices, ok) if use]
+            Cz = np.stack([C @ z for C in mats])  # (m, n)
+            h = Cz @ z
+            Hq = 2.0 * Cz
         P = self.P
         # U = P H^T with H non-zero on the deflection entries only; P symmetric -> U^T = Hq P[q, :]
         U = np.ascontiguousarray((Hq @ P[self._qidx, :]).T)  # (N, m)

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from wingopt.errors import InputError
+from wingopt.progress import Stages, task_label
 
 __all__ = ["BLAS_ENV", "EngineSettings", "Engine", "SharedInput", "SweepTask", "MODES", "empty_task", "blas_threads"]
 
@@ -76,7 +77,8 @@ class SweepTask:
 @dataclass(frozen=True)
 class EngineSettings:
     """How to run a study. ``workers``: processes of the local cluster (default: the CPU count),
-    or the jobs to request from a batch cluster; ``cluster``: dask-jobqueue keyword arguments."""
+    or the jobs to request from a batch cluster; ``cluster``: dask-jobqueue keyword arguments;
+    ``progress``: a stage line per finished task (:mod:`wingopt.progress`, shown by the CLI)."""
 
     mode: str = "local"
     workers: int | None = None
@@ -252,19 +254,17 @@ class Engine:
             if missing:
                 raise InputError(f"task {t.key!r}: shared input {missing[0]!r} is not defined")
         order = sorted(tasks, key=lambda t: t.cost)  # the cheapest first: results arrive early
-        bar = self._bar(len(order), description)
-        try:
-            runner = self._run_serial if self.client is None else self._run_dask
-            for record in runner(order, shared):
-                bar.update(1)
-                yield record
-        finally:
-            bar.close()
-
-    def _bar(self, total: int, description: str):
-        from tqdm.auto import tqdm
-
-        return tqdm(total=total, desc=description, unit="task", disable=not self.settings.progress, leave=False)
+        # Stage lines (wingopt.progress): one per finished task, the time so far and the rest estimated
+        where = "serial" if self.client is None else f"{self.n_workers} workers"
+        what = f"{description}, {len(order)} tasks ({where})"
+        stages = Stages([t.cost for t in order], what, seconds=True, enabled=self.settings.progress and bool(order))
+        index = {t.key: i for i, t in enumerate(order)}
+        runner = self._run_serial if self.client is None else self._run_dask
+        for record in runner(order, shared):
+            key, status = record.get("key", ""), record.get("status", "ok")
+            stages.done(index.get(key, len(stages.finished)), task_label(key, status))
+            yield record
+        stages.finish()
 
     def _run_serial(self, tasks: Sequence[SweepTask], shared: dict[str, SharedInput]) -> Iterator[dict]:
         values: dict[str, Any] = {}

@@ -47,6 +47,7 @@ __all__ = [
     "CONSISTENCY_LAYOUTS",
     "run_tasks",
     "consistency_rows",
+    "lift_history",
 ]
 
 CONSISTENCY_LAYOUTS = (None, (4, 3), (8, 4))
@@ -82,24 +83,55 @@ def protocol_record(
     settings: MHESettings | None,
     initial_load: float,
     oracle_offsets: Sequence[float] | None = None,
+    jekf_modes: int | None = None,
+    history: bool = False,
 ) -> dict:
-    """One run: seeded noise on the clean truth, ``method`` on it, final metrics (and the oracle lambda)."""
+    """One run: seeded noise on the clean truth, ``method`` on it, final metrics (and the oracle lambda).
+
+    ``jekf_modes``: a JEKF keeps only its lowest ``jekf_modes`` modes (``None``: all, exact).
+    ``history``: the record keeps the lift history (:func:`lift_history`, ~10 kB) for the overlay plots.
+    """
     case = noisy_case(clean, noise, seed)
     t0 = time.perf_counter()
-    res = run_method(method, model, case.measurements, settings, initial_load=initial_load, truth=case)
+    extra = {"modes": jekf_modes} if method.startswith("jekf") and jekf_modes is not None else {}
+    res = run_method(method, model, case.measurements, settings, initial_load=initial_load, truth=case, **extra)
     rec = evaluate(case, res, model, method)
     rec.wall_s = time.perf_counter() - t0
     if method == "mhe" and oracle_offsets:
         grid = [rec.regularization * 10.0**e for e in oracle_offsets]
         lam, err, _ = oracle_lambda(case, model, settings or MHESettings(), grid, initial_load=initial_load)
         rec.oracle_regularization, rec.oracle_load_error = lam, min(err, rec.load_error)
-    return {**rec.as_dict(), "params": params}
+    out = {**rec.as_dict(), "params": params}
+    if history:
+        out["history"] = lift_history(res)
+    return out
 
 
-def task_cost(method: str, model_nodes, t_end: float, oracle: bool, dt: float = 1e-3) -> float:
+HISTORY_POINTS = 201
+"""Samples of the lift history kept in a study record (for the MHE–JEKF overlay plot)."""
+
+
+def lift_history(result, points: int = HISTORY_POINTS) -> dict:
+    """The lift history of ``result`` on at most ``points`` evenly spaced samples (JSON lists)."""
+    t = np.asarray(result.t, dtype=float)
+    idx = np.unique(np.linspace(0, t.size - 1, min(points, t.size)).astype(int))
+    lift = np.asarray(result.lift, dtype=float)[idx]
+    std = None if result.lift_std is None else np.asarray(result.lift_std, dtype=float)[idx]
+    return {
+        "t": [round(float(v), 9) for v in t[idx]],
+        "lift_N": [float(f"{v:.6g}") for v in lift],
+        "lift_std_N": None if std is None else [float(f"{v:.4g}") if np.isfinite(v) else None for v in std],
+    }
+
+
+def task_cost(
+    method: str, model_nodes, t_end: float, oracle: bool, jekf_modes: int | None = None, dt: float = 1e-3
+) -> float:
     """Run-time estimate (s) of one run: the size estimate of :func:`wingopt.resources.estimate_identify`,
     times the runs of the oracle-lambda grid (the engine submits the cheapest first: early results)."""
-    seconds = resources.estimate_identify(tuple(model_nodes), int(round(t_end / dt)) + 1, method=method).seconds
+    seconds = resources.estimate_identify(
+        tuple(model_nodes), int(round(t_end / dt)) + 1, method=method, jekf_modes=jekf_modes
+    ).seconds
     return seconds * (1 + len(ORACLE_OFFSETS) if oracle and method == "mhe" else 1)
 
 
@@ -111,23 +143,31 @@ def protocol_tasks(
     oracle: bool = False,
     oracle_offsets: Sequence[float] = ORACLE_OFFSETS,
     t_end: float = 1.0,
+    jekf_modes: int | None = None,
+    histories: bool = False,
 ) -> tuple[list[SweepTask], list[SharedInput]]:
     """Tasks of ``runs`` = (load, noise fraction, seed, method) on ``problem`` (the comparison preset).
 
-    Keys are ``task_key({"load", "noise", "seed", "method"})``: the fields of every comparison record.
+    Keys are ``task_key({"load", "noise", "seed", "method"})``: the fields of every comparison record;
+    a JEKF at a reduced order (``jekf_modes``: its lowest modes only) adds ``"jekf_modes"``, so that
+    its records and the exact filter's are never taken for each other (``--resume``). ``histories``:
+    the records keep their lift histories (the comparison table's, for the overlay plots).
     """
     model_key = f"model/{digest(problem)}"
     shared = {model_key: SharedInput(model_key, build_model, (problem,))}
     tasks: dict[str, SweepTask] = {}
     for load, noise, seed, method in runs:
         params = {"load": load, "noise": float(noise), "seed": int(seed), "method": method}
+        modes = jekf_modes if method.startswith("jekf") and jekf_modes is not None else None
+        if modes is not None:
+            params["jekf_modes"] = int(modes)
         truth_key = f"truth/{digest(problem, load, truth_nodes, t_end)}/{load}"
         shared.setdefault(truth_key, SharedInput(truth_key, simulate_clean, (problem, load, truth_nodes, t_end)))
         sign = protocol_sign(load) * abs(problem.identification.initial_load)
         offsets = tuple(oracle_offsets) if oracle and method == "mhe" else None
-        args = (params, method, float(noise), int(seed), settings, sign, offsets)
+        args = (params, method, float(noise), int(seed), settings, sign, offsets, modes, histories)
         key = task_key(params)
-        cost = task_cost(method, problem.nodes, t_end, bool(offsets))
+        cost = task_cost(method, problem.nodes, t_end, bool(offsets), modes)
         tasks.setdefault(key, SweepTask(key, protocol_record, args, (truth_key, model_key), cost))
     return list(tasks.values()), list(shared.values())
 
