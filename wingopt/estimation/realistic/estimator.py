@@ -32,7 +32,7 @@ from wingopt.estimation.realistic.model_form import PRESTRAIN_MODEL_FORM_REL, pr
 from wingopt.estimation.realistic.prior_check import load_prior_check
 from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior, RecordProblem
 from wingopt.estimation.realistic.settings import LOAD_MODELS, MEMBRANE_MODELS, RealisticSettings
-from wingopt.estimation.realistic.solver import Fit, levenberg_marquardt
+from wingopt.estimation.realistic.solver import Budget, Fit, levenberg_marquardt
 from wingopt.estimation.realistic.start import initial_state_prior, modal_model, scan
 from wingopt.estimation.realistic.steady_estimator import is_steady, steady_identify
 from wingopt.estimation.realistic.tension_profile import tension_profile
@@ -44,10 +44,6 @@ from wingopt.membrane.modal import FvKModal
 __all__ = ["RealisticSettings", "realistic_identify", "LOAD_MODELS", "MEMBRANE_MODELS"]
 
 log = logging.getLogger(__name__)
-
-
-def _fit(rp: RecordProblem, theta0: np.ndarray, s: RealisticSettings) -> Fit:
-    return levenberg_marquardt(rp, theta0, s.max_iter)
 
 
 def realistic_identify(
@@ -63,6 +59,12 @@ def realistic_identify(
     if s.record == "steady" or (s.record == "auto" and s.membrane_model == "fvk" and is_steady(meas.values)):
         return steady_identify(model, meas, s, initial_load)
     t0 = time.perf_counter()
+    budget = Budget(s.max_total_iter, s.cpu_s)  # every fit of this record draws on it
+
+    def fit_(r: RecordProblem, theta0: np.ndarray, cap: RealisticSettings = s) -> Fit:
+        return levenberg_marquardt(r, theta0, cap.max_iter, budget=budget)
+
+    skipped: list[str] = []
     problem = model.problem
     sigma, noise_source = resolve_noise_std(
         meas.values, meas.sensor_names, None, meas.noise_std, problem.identification.noise_std
@@ -81,6 +83,9 @@ def realistic_identify(
             # FvK's small-deflection limit is the linear membrane: when FvK fits the record the
             # linear variant cannot fit it better; it is fitted only when FvK misfits.
             break
+        if i > 0 and budget.exhausted:
+            skipped.append("the linear membrane")
+            break
         rp = RecordProblem(
             bm,
             shapes,
@@ -96,10 +101,10 @@ def realistic_identify(
         )
         # the alternative is fitted with few iterations first: it is finished only if it wins
         cap = s if i == 0 else s.replace(max_iter=min(s.max_iter, 12))
-        candidates[kind] = (rp, _fit(rp, scan(rp, np.sign(p0)), cap))
+        candidates[kind] = (rp, fit_(rp, scan(rp, np.sign(p0)), cap))
     if len(candidates) == 2 and candidates["linear"][1].cost < candidates["nonlinear"][1].cost:
         rp, f = candidates["linear"]
-        candidates["linear"] = (rp, _fit(rp, f.theta, s))
+        candidates["linear"] = (rp, fit_(rp, f.theta))
     kind = min(candidates, key=lambda k: candidates[k][1].cost)
     rp, fit = candidates[kind]
     selection = {k: {"chi2": f.data_cost, "cost": f.cost} for k, (_, f) in candidates.items()}
@@ -109,25 +114,38 @@ def realistic_identify(
     fits = {"constant": fit}
     chosen = "constant"
     ad = assess(meas.t, _residual_matrix(rp, fit), fit.effective_parameters, s.segment_s)
-    if s.load_model == "gust" or (s.load_model == "auto" and not ad.adequate):
+    if s.load_model == "auto" and not ad.adequate and budget.exhausted:
+        skipped.append("the gust load model")
+    elif s.load_model == "gust" or (s.load_model == "auto" and not ad.adequate):
         rg = dataclasses.replace(rp, gust=s.gust)
         th = np.zeros(rg.dim)
         for name in ("x0", "c", "par"):
             th[rg.slices[name]] = fit.theta[rp.slices[name]]
-        fit_g = _fit(rg, th, s)
+        fit_g = fit_(rg, th)
         fits["gust"] = fit_g
         added = rg.dim - rp.dim
         if s.load_model == "gust" or fit.cost - fit_g.cost > 2 * added:
             rp, fit, chosen = rg, fit_g, "gust"
             ad = assess(meas.t, _residual_matrix(rp, fit), fit.effective_parameters, s.segment_s)
-    res, fit = _finish(rp, fit, fits, chosen, ad, sigma, noise_source, t0, s, bubble_known, p0)
-    if weigh_frame:
+    res, fit = _finish(rp, fit, fits, chosen, ad, sigma, noise_source, t0, s, bubble_known, p0, fit_)
+    if weigh_frame and budget.exhausted:
+        skipped.append("the frame load prior")
+    elif weigh_frame:
         rf = dataclasses.replace(rp, shapes=frame_shapes(model, shapes, s, p0))
-        fit_f = _fit(rf, embed(rp, fit.theta, rf), s)
+        fit_f = fit_(rf, embed(rp, fit.theta, rf))
         ad_f = assess(meas.t, _residual_matrix(rf, fit_f), fit_f.effective_parameters, s.segment_s)
-        res_f, fit_f = _finish(rf, fit_f, {chosen: fit_f}, chosen, ad_f, sigma, noise_source, t0, s, bubble_known, p0)
+        res_f, fit_f = _finish(rf, fit_f, {chosen: fit_f}, chosen, ad_f, sigma, noise_source, t0, s, bubble_known, p0,
+                               fit_)  # fmt: skip
         res = weigh(res, res_f, log_evidence(fit), log_evidence(fit_f), _frame_note)
     res.info["membrane_selection"] = selection
+    res.info["budget"] = {"iterations": budget.used, "max_total_iter": s.max_total_iter, "cpu_s": budget.spent,
+                          "exhausted": budget.exhausted, "not_fitted": skipped}  # fmt: skip
+    if budget.exhausted:
+        res.info["warnings"].append(
+            f"stopped at the record's work budget ({budget.used} Levenberg-Marquardt iterations over all fits, "
+            f"max_total_iter {s.max_total_iter}; {budget.spent:.1f} s CPU): a record this model explains poorly"
+            + (f"; not fitted: {', '.join(skipped)}" if skipped else "")
+        )
     res.wall_s = time.perf_counter() - t0
     return res
 
@@ -156,9 +174,9 @@ def _frame_note(w_interior: float, w_frame: float) -> str:
     )
 
 
-def _finish(rp, fit, fits, chosen, ad, sigma, noise_source, t0, s, bubble_known, p0):
+def _finish(rp, fit, fits, chosen, ad, sigma, noise_source, t0, s, bubble_known, p0, fit_):
     """The prior check, the sign and the result of a fit, with the tension profile's band check."""
-    rp, fit, spread, prior_info = load_prior_check(rp, fit, lambda r, th: _fit(r, th, s))
+    rp, fit, spread, prior_info = load_prior_check(rp, fit, fit_)
     if prior_info["conflict"]:
         ad = assess(rp.t, _residual_matrix(rp, fit), fit.effective_parameters, s.segment_s)
     c, _ = rp.load_history(fit.theta)
@@ -166,13 +184,13 @@ def _finish(rp, fit, fits, chosen, ad, sigma, noise_source, t0, s, bubble_known,
         # Sign-blind sensors: state and load flip together; the prior load's sign decides.
         fit = dataclasses.replace(fit, theta=_flip(rp, fit.theta))
     res = _result(rp, fit, fits, chosen, ad, sigma, noise_source, time.perf_counter() - t0, s, spread, prior_info)
-    return _with_tension_profile(res, rp, fit, ad, s), fit
+    return _with_tension_profile(res, rp, fit, ad, fit_), fit
 
 
-def _with_tension_profile(res: IdentificationResult, rp: RecordProblem, fit: Fit, ad, s) -> IdentificationResult:
+def _with_tension_profile(res: IdentificationResult, rp: RecordProblem, fit: Fit, ad, fit_) -> IdentificationResult:
     """Check the band by the lift's profile when the record holds little on the tension."""
     band = float(res.lift_std[-1])
-    wide, info = tension_profile(rp, fit, fit.covariance * ad.inflation**2, band, lambda r, th: _fit(r, th, s))
+    wide, info = tension_profile(rp, fit, fit.covariance * ad.inflation**2, band, fit_)
     res.info["tension_profile"] = info
     if not info["applied"]:
         return res

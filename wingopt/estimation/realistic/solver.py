@@ -9,13 +9,14 @@ is the posterior precision (the cost is a chi-square).
 from __future__ import annotations
 
 import logging
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from wingopt.errors import SolverError
 
-__all__ = ["Fit", "levenberg_marquardt", "cost"]
+__all__ = ["Fit", "Budget", "levenberg_marquardt", "cost"]
 
 log = logging.getLogger(__name__)
 
@@ -32,6 +33,7 @@ class Fit:
     residuals: np.ndarray
     iterations: int
     converged: bool
+    out_of_budget: bool = False
 
     @property
     def cost(self) -> float:
@@ -55,13 +57,36 @@ def cost(problem, theta) -> tuple[float, float]:
     return float(rd @ rd), float(rp @ rp)
 
 
-def levenberg_marquardt(problem, theta0: np.ndarray, max_iter: int = 40, tol: float = 1e-2) -> Fit:
+class Budget:
+    """The work one record may cost, shared by all its fits: ``iterations`` Levenberg–Marquardt
+    iterations in all (deterministic: the same record stops at the same point on any machine) and,
+    optionally, ``seconds`` of CPU."""
+
+    def __init__(self, iterations: int | None = None, seconds: float | None = None) -> None:
+        self.iterations, self.seconds = iterations, seconds
+        self.used = 0
+        self.start = time.process_time()
+
+    @property
+    def spent(self) -> float:
+        return time.process_time() - self.start
+
+    @property
+    def exhausted(self) -> bool:
+        over_iterations = self.iterations is not None and self.used >= self.iterations
+        return over_iterations or (self.seconds is not None and self.spent >= self.seconds)
+
+
+def levenberg_marquardt(
+    problem, theta0: np.ndarray, max_iter: int = 40, tol: float = 1e-2, budget: Budget | None = None
+) -> Fit:
     """Minimise ``problem``'s chi-square from ``theta0``.
 
     Converged when the undamped Gauss–Newton step would lower the chi-square by less than ``tol``
     (its Newton decrement ``g^T H^-1 g``: the point is within ``sqrt(tol)`` posterior standard
     deviations of the minimum of the local model in every direction). The damped step's own
-    predicted decrease is no test: with a large damping it is small far from the minimum.
+    predicted decrease is no test: with a large damping it is small far from the minimum. A spent
+    ``budget`` stops it before the next iteration (``out_of_budget``; not converged).
     """
     theta = np.array(theta0, dtype=float)
     mu, nu = 1e-3, 2.0
@@ -80,9 +105,11 @@ def levenberg_marquardt(problem, theta0: np.ndarray, max_iter: int = 40, tol: fl
         if decrement < tol:
             converged = True
             break
-        if it >= max_iter:
+        if it >= max_iter or (budget is not None and budget.exhausted):
             break
         it += 1
+        if budget is not None:
+            budget.used += 1
         dH = np.diag(H).copy()
         accepted = None
         while True:
@@ -128,4 +155,5 @@ def levenberg_marquardt(problem, theta0: np.ndarray, max_iter: int = 40, tol: fl
         f = float(rd @ rd + rp @ rp)
     log.debug("LM: %d iterations, cost %.4g, converged %s", it, f, converged)
     H = Jd.T @ Jd + Rp.T @ Rp
-    return Fit(theta, float(rd @ rd), float(rp @ rp), H, Jd, rd, it, converged)
+    out = not converged and it < max_iter and budget is not None and budget.exhausted
+    return Fit(theta, float(rd @ rd), float(rp @ rp), H, Jd, rd, it, converged, out)

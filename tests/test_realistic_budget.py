@@ -1,0 +1,47 @@
+"""The transient route's work budget (``RealisticSettings.max_total_iter``, ``cpu_s``): every fit of a
+record draws on one budget, the fits stop when it is spent, the alternatives left are named, and the
+result says so; within it the answer is the unlimited one (the default budget, 160 iterations, is
+above the protocol's worst record, L3: 143)."""
+
+import pytest
+
+from wingopt.errors import InputError
+from wingopt.estimation.realistic import RealisticSettings, realistic_identify
+from wingopt.membrane import MembraneModel
+from wingopt.problem import load_problem
+from wingopt.workflows.protocols import simulate_case
+
+
+@pytest.fixture(scope="module")
+def record():
+    problem = load_problem("membrane").with_mesh((13, 7))
+    case = simulate_case(problem, "L1", 0.01, 0, (17, 9), 0.3, truth="fvk")
+    return MembraneModel.from_problem(problem), case.measurements
+
+
+def test_within_the_budget_the_answer_is_the_unlimited_one(record):
+    model, meas = record
+    free = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk", max_total_iter=10**6))
+    dflt = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk"))
+    b = dflt.info["budget"]
+    assert not b["exhausted"] and b["iterations"] == free.info["budget"]["iterations"] < b["max_total_iter"]
+    assert float(dflt.lift[-1]) == float(free.lift[-1])
+    assert not any("work budget" in w for w in dflt.info["warnings"])
+
+
+def test_a_spent_budget_stops_the_fits_and_says_so(record):
+    model, meas = record
+    res = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk", max_total_iter=3))
+    b = res.info["budget"]
+    assert b["exhausted"] and b["iterations"] == 3 and not res.info["converged"]
+    said = "stopped at the record's work budget (3 Levenberg-Marquardt iterations"
+    assert any(said in w for w in res.info["warnings"])
+    cpu = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk", cpu_s=1e-6))
+    assert cpu.info["budget"]["exhausted"] and cpu.info["budget"]["iterations"] <= 1
+
+
+def test_budget_settings_are_checked():
+    with pytest.raises(InputError, match="max_total_iter = 0"):
+        RealisticSettings(max_total_iter=0)
+    with pytest.raises(InputError, match="cpu_s = -1"):
+        RealisticSettings(cpu_s=-1)
