@@ -137,7 +137,7 @@ def test_auto_resolves_to_the_documented_pairs():
 def test_the_command_line_refuses_an_unused_option_in_one_line(tmp_path, capsys):
     argv = ["identify", "membrane", "--data", "examples/data/synthetic_tunnel_300Hz.csv", "--out", str(tmp_path / "o")]
     cases = [(["--window", "0.1s"], "--window"), (["--lambda", "1e-6"], "--lambda")]
-    cases += [(["--backend", "ipopt"], "--backend"), (["--state-prior", "0.1"], "--state-prior")]
+    cases += [(["--solver", "ipopt"], "--solver"), (["--state-prior", "0.1"], "--state-prior")]
     for extra, flag in cases:
         assert main(argv + extra) == 2
         err = capsys.readouterr().err.strip()

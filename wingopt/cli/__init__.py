@@ -58,7 +58,7 @@ def add_force_option(parser, option: str, name: str = "FILE") -> None:
     )
 
 
-SOLVER_FLAGS = {("morph", "qp"): ("--solver", "qp"), ("identify", "mhe"): ("--backend", "window")}
+SOLVER_FLAGS = {("morph", "qp"): ("--solver", "qp"), ("identify", "mhe"): ("--solver", "window")}
 """(command, context of a :class:`SolverError`) -> the flag that picks another solver, and the
 capability (:mod:`wingopt.optim.registry`) whose installed names it takes."""
 
@@ -197,11 +197,13 @@ def main(argv: list[str] | None = None) -> int:
     128 + N terminated by signal N (143 for SIGTERM). Each failure is one line on stderr.
     """
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, deprecated = _parse(parser, argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_INPUT
     _configure_logging(args)
+    for message in deprecated:  # old option spellings (wingopt.cli.options.DEPRECATED): one line each
+        log.warning("%s", message)
     name = f"wingopt {args.command}"
     _RECEIVED.clear()
     old = _install_handlers()
@@ -247,6 +249,24 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         for s, h in old.items():
             signal.signal(s, h)
+
+
+def _parse(parser, argv):
+    """Parsed arguments and the deprecation messages of old option spellings (each once)."""
+    import warnings
+
+    from wingopt.cli.options import DeprecatedOptionWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", DeprecatedOptionWarning)
+        args = parser.parse_args(argv)
+    messages = []
+    for w in caught:
+        if issubclass(w.category, DeprecatedOptionWarning):
+            messages.append(str(w.message))
+        else:  # not ours: as it would have been without the catch
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return args, list(dict.fromkeys(messages))
 
 
 def _say(line: str) -> None:

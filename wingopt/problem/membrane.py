@@ -5,8 +5,10 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from wingopt.measurements.channels import ChannelMap
 from wingopt.problem.dic import DICSettings, dic_from_table
 from wingopt.problem.fields import Table
+from wingopt.problem.measurements import measurements_from_table
 
 __all__ = ["MembraneMaterial", "StretchSensorSpec", "IdentificationSettings", "MembraneProblem", "from_table"]
 
@@ -102,6 +104,8 @@ class MembraneProblem:
     """A rectangular membrane wing with stretch sensors, clamped (zero deflection) on all edges.
 
     ``dic``: the ``[dic]`` table (how DIC frames map to the wing, :mod:`wingopt.problem.dic`), if any.
+    ``measurements``: the ``[measurements]`` table (a DAQ file's columns, gains and offsets,
+    :mod:`wingopt.problem.measurements`), if any.
     """
 
     width: float
@@ -113,6 +117,7 @@ class MembraneProblem:
     name: str = "membrane"
     source: str = "<memory>"
     dic: DICSettings | None = None
+    measurements: ChannelMap | None = None
 
     kind = "membrane"
 
@@ -215,6 +220,7 @@ def from_table(root: Table, name: str) -> MembraneProblem:
             noise = (ident.number("noise_std", positive=True),)
     ident.finish()
     dic = dic_from_table(root.table("dic")) if root.has("dic") else None
+    channels = measurements_from_table(root.table("measurements"), names) if root.has("measurements") else None
     root.finish()
     return MembraneProblem(
         width=width,
@@ -242,4 +248,5 @@ def from_table(root: Table, name: str) -> MembraneProblem:
         name=name,
         source=root.source,
         dic=dic,
+        measurements=channels,
     )

@@ -33,7 +33,7 @@ from wingopt.estimation.options import IdentifyOptions
 from wingopt.estimation.registry import check_options, resolve
 from wingopt.estimation.result import IdentificationResult
 from wingopt.estimation.runners import build
-from wingopt.measurements import Measurements, read_measurements
+from wingopt.measurements import ChannelMap, Measurements, read_measurements
 from wingopt.measurements.dic import DICFrames
 from wingopt.membrane import MembraneModel, TruthRecord
 from wingopt.membrane.loads import LOAD_CASES
@@ -166,6 +166,7 @@ def identify(
     noise_std: float | None = None,
     lam: LambdaChoice | None = None,
     noise: float | None = None,
+    channels: ChannelMap | None = None,
 ) -> IdentifyRun:
     """Estimate the load of a membrane problem from a simulated (``load``) or measured (``data``) record.
 
@@ -208,6 +209,10 @@ def identify(
         (sensor units; default: estimated from the data) and the lambda choice.
     noise : float, optional
         No longer accepted (it was a fraction): give ``noise_percent``.
+    channels : ChannelMap, optional
+        A CSV ``data`` file's time and sensor columns and each sensor's gain and offset
+        (``stretch = gain * (raw - offset)``); default: the problem's ``[measurements]`` table, if
+        any. Recorded in the summary's ``data.channels``.
 
     Returns
     -------
@@ -296,7 +301,7 @@ def identify(
     elif isinstance(data, (str, Path)):
         if Path(data).is_dir():
             raise InputError(f"data = {str(data)!r}: is a directory, expected a CSV file")
-        meas, csv_report = read_measurements(data, problem.sensor_names)
+        meas, csv_report = read_measurements(data, problem.sensor_names, channels or problem.measurements)
         report = csv_report.as_dict()
         meas = _with_noise_std(meas, opts.noise_std)
     else:
