@@ -80,7 +80,6 @@ PER_COMMAND: dict[str, str] = {
     "--out": "the output directory everywhere; demo has a default (./wingopt-demo)",
     "--data": "a CSV record; identify also takes '-' (standard input)",
     "--mesh": "the estimator's or the model's mesh; default: the problem's",
-    "--model": "the membrane the estimator assumes",
 }
 """Shared names whose default or choices depend on the command, and why (documented in docs/cli.md)."""
 

@@ -129,7 +129,9 @@ def _read_text(path: str | Path) -> str:
 _EMPTY_CELL = re.compile(r"(?<=,)[ \t]*(?=,|$)|^[ \t]*(?=,)", re.MULTILINE)
 
 
-def _fast_table(path, text: str, sensor_names, channels: ChannelMap) -> tuple[np.ndarray, np.ndarray, list[str]] | None:
+def _fast_table(
+    path, text: str, sensor_names, channels: ChannelMap | None = None
+) -> tuple[np.ndarray, np.ndarray, list[str]] | None:
     """``np.loadtxt`` on a clean file: ``(t, values, ignored columns)``, or ``None`` to use the validator.
 
     Applies only to plain numeric files (empty cells and ``nan`` allowed, no quotes): anything else,
@@ -147,6 +149,7 @@ def _fast_table(path, text: str, sensor_names, channels: ChannelMap) -> tuple[np
             return None
         start = end + 1
     header = [h.strip() for h in line.split(",")]
+    channels = channels or ChannelMap()
     tcol, cols = channels.time, [channels.column(n) for n in sensor_names]
     if tcol not in header or len(set(header)) != len(header) or any(c not in header for c in cols):
         return None
@@ -233,7 +236,10 @@ class _NeedLines(Exception):
     """An error was found by the fast path: re-read line by line to name the line."""
 
 
-def _read_slow(name: str, text: str, sensor_names, channels: ChannelMap, given: bool) -> tuple[Measurements, CsvReport]:
+def _read_slow(
+    name: str, text: str, sensor_names, channels: ChannelMap | None = None, given: bool = False
+) -> tuple[Measurements, CsvReport]:
+    channels = channels or ChannelMap()
     lines = [(i + 1, ln) for i, ln in enumerate(text.splitlines()) if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         want = ",".join([channels.time, *(channels.column(s) for s in sensor_names)])
@@ -342,7 +348,7 @@ def header_columns(
     missing = [s for s in sensor_names if channels.column(s) not in header]
     if missing:
         if mapped:
-            cols = ", ".join(f"{channels.column(s)} ({s})" for s in missing)
+            cols = ", ".join(s if channels.column(s) == s else f"{channels.column(s)} ({s})" for s in missing)
             raise DataFileError(
                 f"{name}:{line}: missing column(s) {cols}: expected the columns the channel map names "
                 f"(header {', '.join(header)})"

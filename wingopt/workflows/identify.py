@@ -181,9 +181,10 @@ def identify(
         Simulated noise in PERCENT of each sensor's peak output (1 = 1 %), as ``--noise``.
     seed : int
         Noise seed.
-    data : path, Measurements or array, optional
-        Measured record instead of ``load``: a CSV file (``t`` column + one column per sensor), a
-        :class:`Measurements`, or an array ``(N, 1 + p)`` of rows ``t, s_1 .. s_p`` (problem's sensor order).
+    data, channels : path, Measurements or array; ChannelMap, optional
+        Measured record instead of ``load``: a CSV file (``t`` + one column per sensor, or a DAQ's columns,
+        gains, offsets by ``channels``, default the problem's ``[measurements]``; recorded in ``data.channels``),
+        a :class:`Measurements`, or an array ``(N, 1 + p)`` of rows ``t, s_1 .. s_p`` (problem's sensor order).
     dic : path or DICFrames, optional
         DIC frames instead (:mod:`wingopt.workflows.dic`, mapped by the problem's ``[dic]``): the
         full-field estimator by default (``method="fullfield"``); any other method gets the frames'
@@ -209,10 +210,6 @@ def identify(
         (sensor units; default: estimated from the data) and the lambda choice.
     noise : float, optional
         No longer accepted (it was a fraction): give ``noise_percent``.
-    channels : ChannelMap, optional
-        A CSV ``data`` file's time and sensor columns and each sensor's gain and offset
-        (``stretch = gain * (raw - offset)``); default: the problem's ``[measurements]`` table, if
-        any. Recorded in the summary's ``data.channels``.
 
     Returns
     -------
@@ -298,12 +295,9 @@ def identify(
         )
         membrane = MembraneModel.from_problem(problem)  # the first frame's shape may be its initial deflection
         meas = meas if opts.noise_std is None else _with_noise_std(meas, opts.noise_std)
-    elif isinstance(data, (str, Path)):
-        if Path(data).is_dir():
-            raise InputError(f"data = {str(data)!r}: is a directory, expected a CSV file")
-        meas, csv_report = read_measurements(data, problem.sensor_names, channels or problem.measurements)
-        report = csv_report.as_dict()
-        meas = _with_noise_std(meas, opts.noise_std)
+    elif isinstance(data, (str, Path)):  # read_measurements refuses a directory (one line naming data)
+        meas, report = read_measurements(data, problem.sensor_names, channels or problem.measurements)
+        meas, report = _with_noise_std(meas, opts.noise_std), report.as_dict()
     else:
         meas = _with_noise_std(sanity.as_measurements(data, problem.sensor_names), opts.noise_std)
     if load is None:
