@@ -58,6 +58,8 @@ class CsvRowParser:
 
     def __init__(self, sensor_names, source: str = "<stream>", channels: ChannelMap | None = None) -> None:
         self.sensor_names = tuple(sensor_names)
+        if channels is not None and not isinstance(channels, ChannelMap):
+            raise DataFileError(f"channels = {channels!r}: expected a wingopt.measurements.ChannelMap or None")
         self.channels = (channels or ChannelMap()).check(self.sensor_names)
         self.source = source
         self.line = 0
