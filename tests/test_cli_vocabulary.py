@@ -96,8 +96,9 @@ def test_a_seed_is_a_seed_and_a_count_is_named_so():
 MINIMAL = {
     "identify": ["identify", "membrane", "--load", "L1", "--out", "x"],
     "compare": ["compare", "membrane", "--out", "x"],
+    "dic-sensors": ["dic-sensors", "membrane", "--out", "x"],
 }
-VALUES = {"--backend": "cvxpy", "--jobs": "3", "--seeds": "2", "--sign-seeds": "4"}
+VALUES = {"--backend": "cvxpy", "--jobs": "3", "--seeds": "2", "--sign-seeds": "4", "--frames": "f.npz"}
 
 
 @pytest.mark.parametrize("old", sorted(DEPRECATED))

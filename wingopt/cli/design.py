@@ -13,6 +13,7 @@ import argparse
 import json
 
 from wingopt.cli import OUT_HELP, add_force_option
+from wingopt.cli import options as opt
 from wingopt.errors import InputError
 
 ORDER = 35
@@ -50,7 +51,7 @@ def register(sub, common) -> None:
         "--nominal", type=int, help="nominal loads the design is robust over (default 12 for risk, 4 for a/lift/d)"
     )
     p.add_argument("--aggregate", choices=("mean", "max"), default="mean", help="over the nominal loads")
-    p.add_argument("--noise", type=float, default=1.0, help="noise in PERCENT of each sensor's peak (default 1)")
+    p.add_argument("--noise", type=opt.percent, default=1.0, help="noise in PERCENT of each sensor's peak (default 1)")
     p.add_argument("--t-end", type=float, default=1.0, help="record length, s (default 1)")
     p.add_argument(
         "--montecarlo",

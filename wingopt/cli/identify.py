@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 
 from wingopt.cli import OUT_HELP, follow
 from wingopt.cli import options as opt
+from wingopt.cli.options import parse_noise
 from wingopt.errors import InputError
 from wingopt.estimation.registry import METHOD_ALIASES, METHODS, MODEL_ALIASES, MODELS
 from wingopt.optim.registry import solver_names
@@ -42,23 +42,6 @@ examples:
       --gain 1e-5 --offset 250 --out runs/daq   # stretch = gain * (raw - offset)
   (CSV: header 't,S1,S2,S3,S4', time in s, dimensionless stretch; empty cells = missing samples; a DAQ's own
   columns and units: --columns, --gain, --offset (stretch = gain * (raw - offset)) or the problem's [measurements])"""
-
-
-def parse_noise(text: str) -> float:
-    """``"1"`` or ``"1%"`` -> 0.01. Percent is the unit; bare values in (0, 0.1) are ambiguous."""
-    from wingopt.values import NoiseLevel
-
-    s = str(text).strip()
-    m = re.fullmatch(r"([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*(%?)", s)
-    if not m:
-        raise InputError(f"noise = {text!r}: expected a percentage, e.g. 1 for 1 % (or '1%')")
-    value, pct = float(m.group(1)), m.group(2) == "%"
-    if not pct and 0 < value < 0.1:
-        raise InputError(
-            f"noise = {text!r}: ambiguous, the noise is in percent (1 means 1 %); "
-            f"for {100 * value:g} % write {100 * value:g}, for {value:g} % write '{value:g}%'"
-        )
-    return NoiseLevel.from_percent(value).fraction
 
 
 def register(sub, common) -> None:

@@ -30,6 +30,8 @@ __all__ = [
     "add",
     "add_alias",
     "add_channel_options",
+    "percent",
+    "parse_noise",
     "channel_map",
     "parse_assignments",
 ]
@@ -63,6 +65,7 @@ DEPRECATED: dict[str, tuple[str, str]] = {
     "--jobs": ("--workers", "compare"),
     "--seeds": ("--n-seeds", "compare"),
     "--sign-seeds": ("--n-sign-seeds", "compare"),
+    "--frames": ("--dic", "dic-sensors"),
 }
 """Old spelling -> (new spelling, the command that had it). Hidden from ``--help``; they warn once."""
 
@@ -122,6 +125,32 @@ def add(container, name: str, *, aliases: tuple[str, ...] = (), **overrides) -> 
     for old in aliases:
         add_alias(container, action, old)
     return action
+
+
+def parse_noise(text: str) -> float:
+    """``"1"`` or ``"1%"`` -> 0.01. Percent is the unit; bare values in (0, 0.1) are ambiguous."""
+    from wingopt.values import NoiseLevel
+
+    s = str(text).strip()
+    m = re.fullmatch(r"([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*(%?)", s)
+    if not m:
+        raise InputError(f"noise = {text!r}: expected a percentage, e.g. 1 for 1 % (or '1%')")
+    value, pct = float(m.group(1)), m.group(2) == "%"
+    if not pct and 0 < value < 0.1:
+        raise InputError(
+            f"noise = {text!r}: ambiguous, the noise is in percent (1 means 1 %); "
+            f"for {100 * value:g} % write {100 * value:g}, for {value:g} % write '{value:g}%'"
+        )
+    return NoiseLevel.from_percent(value).fraction
+
+
+def percent(text: str) -> float:
+    """An argparse ``type``: ``"1"`` or ``"1%"`` -> 1.0 (percent), with :func:`parse_noise`'s rule
+    (bare values in (0, 0.1) are ambiguous and refused, in one line)."""
+    try:
+        return 100 * parse_noise(text)
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 # -- the channel map (identify --columns/--gain/--offset) ---------------------------------------
