@@ -61,6 +61,7 @@ def register(sub, common) -> None:
         "--n-sign-seeds",
         dest="sign_seeds",
         type=int,
+        metavar="N",
         default=0,
         help="MHE sign/band check over N seeds (5 %% noise)",
         aliases=("--sign-seeds",),

@@ -44,7 +44,7 @@ class DeprecatedOptionWarning(FutureWarning):
 MAX_MEMORY_HELP = "refuse runs estimated to need more (e.g. 4G; default: what is available)"
 
 SHARED: dict[str, dict] = {
-    "--seed": {"type": int, "default": 0, "help": "noise seed (default 0)"},
+    "--seed": {"type": int, "default": 0, "metavar": "N", "help": "noise seed (default 0)"},
     "--n-seeds": {"type": int, "metavar": "N", "help": "how many noise seeds"},
     "--mesh": {"metavar": "NXxNY", "help": "nodes in x and y, e.g. 25x13 (default: the problem's mesh)"},
     "--truth-mesh": {"default": "49x25", "metavar": "NXxNY", "help": "mesh of the simulated truth (default 49x25)"},
@@ -52,7 +52,7 @@ SHARED: dict[str, dict] = {
     "--max-memory": {"metavar": "SIZE", "help": MAX_MEMORY_HELP},
     "--noise-std": {"type": float, "help": "sensor noise std, stretch units (default: estimated from the data)"},
     "--solver": {"help": "numerical solver"},
-    "--workers": {"type": int, "help": "worker processes"},
+    "--workers": {"type": int, "metavar": "N", "help": "worker processes"},
     "--r": {"type": float, "help": "LQR input weight R = r I, V^-2"},
     "--no-plots": {"action": "store_true", "help": "skip the figures"},
     "--json": {"action": "store_true", "help": "print the summary as JSON on stdout"},
