@@ -234,6 +234,16 @@ def test_cli_refuses_a_bad_map_in_one_line(files, tmp_path, capsys, extra, field
     assert not (tmp_path / "o").exists()
 
 
+def test_calibrate_takes_the_same_map(files, tmp_path, capsys):
+    argv = ["calibrate", str(files["small"]), "--data", str(files["daq"]), *CLI_MAP[:4], "--gain", "S9=1e-5"]
+    assert main(argv + ["--out", str(tmp_path / "c")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--gain: 'S9': not a sensor" in err
+    argv = ["calibrate", str(files["small"]), "--data", str(files["daq"]), "--out", str(tmp_path / "c")]
+    assert main(argv) == 2  # without the map: the millivolt file has no 't' column
+    assert "'t' column" in capsys.readouterr().err
+
+
 def test_cli_refuses_a_map_without_measured_data(files, tmp_path, capsys):
     argv = ["identify", str(files["small"]), "--load", "L1", "--gain", "1e-5", "--out", str(tmp_path / "o")]
     assert main(argv) == 2

@@ -33,6 +33,7 @@ __all__ = [
     "percent",
     "parse_noise",
     "channel_map",
+    "channel_options_given",
     "parse_assignments",
 ]
 
@@ -194,7 +195,7 @@ def add_channel_options(parser) -> None:
     from wingopt.measurements.channels import TIME_UNITS
 
     g = parser.add_argument_group(
-        "DAQ columns and calibration (--data, --follow; override the problem's [measurements] table)",
+        "DAQ columns and calibration (measured data; override the problem's [measurements] table)",
         "stretch = gain * (raw - offset), per sensor; sensors not named keep their own column, gain 1, offset 0; "
         "the map used is recorded in summary.json",
     )
@@ -203,6 +204,11 @@ def add_channel_options(parser) -> None:
     g.add_argument("--offset", metavar="S1=O,...", help="raw reading at zero stretch, per sensor (or one number)")
     g.add_argument("--time-column", metavar="NAME", help="the time column (default t)")
     g.add_argument("--time-unit", choices=tuple(TIME_UNITS), help="unit of the time column (default s)")
+
+
+def channel_options_given(args) -> bool:
+    """Whether any of the channel-map options is on the command line."""
+    return any(getattr(args, k, None) is not None for k in ("columns", "gain", "offset", "time_column", "time_unit"))
 
 
 def channel_map(args, problem):
