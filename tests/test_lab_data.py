@@ -50,11 +50,11 @@ FAST = ["--method", "mhe", "--model", "linear", "--no-model-form", "--window", "
 FAST += ["--modes", "20", "--no-plots"]  # the mapping is tested, not the estimator: the fast linear MHE
 
 
-def _daq_files(tmp: Path) -> tuple[Path, Path]:
-    """``(daq.csv, reference.csv)`` from the shipped record (comment lines and missing cells kept)."""
+def _daq_files(tmp: Path, record: Path = RECORD, stem: str = "") -> tuple[Path, Path]:
+    """``(daq.csv, reference.csv)`` from a shipped record (comment lines and missing cells kept)."""
     daq, ref = [], []
     header = None
-    for line in RECORD.read_text().splitlines():
+    for line in record.read_text().splitlines():
         if not line.strip() or line.startswith("#"):
             daq.append(line)
             ref.append(line)
@@ -78,9 +78,9 @@ def _daq_files(tmp: Path) -> tuple[Path, Path]:
         by_channel = {COLUMN[s]: raw[s] for s in NAMES}
         daq.append(",".join([row["t"]] + [by_channel[c] for c in ("ch1", "ch2", "ch3", "ch4")]))
         ref.append(",".join([row["t"]] + [back[s] for s in NAMES]))
-    (tmp / "daq.csv").write_text("\n".join(daq) + "\n")
-    (tmp / "reference.csv").write_text("\n".join(ref) + "\n")
-    return tmp / "daq.csv", tmp / "reference.csv"
+    (tmp / f"{stem}daq.csv").write_text("\n".join(daq) + "\n")
+    (tmp / f"{stem}reference.csv").write_text("\n".join(ref) + "\n")
+    return tmp / f"{stem}daq.csv", tmp / f"{stem}reference.csv"
 
 
 @pytest.fixture(scope="module")
@@ -232,6 +232,16 @@ def test_cli_refuses_a_bad_map_in_one_line(files, tmp_path, capsys, extra, field
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and field in err, err
     assert not (tmp_path / "o").exists()
+
+
+def test_calibrate_with_the_map_finds_the_parameters_of_the_record(files, tmp_path, capsys):
+    daq, ref = _daq_files(tmp_path, RECORD.parent / "tunnel_calibration_300Hz.csv", "cal_")
+    assert main(["calibrate", "membrane", "--data", str(ref), "--out", str(tmp_path / "r"), "--json"]) == 0
+    a = json.loads(capsys.readouterr().out)
+    assert main(["calibrate", "membrane", "--data", str(daq), *CLI_MAP, "--out", str(tmp_path / "d"), "--json"]) == 0
+    b = json.loads(capsys.readouterr().out)
+    assert b["parameters"] == a["parameters"] and b["parameters_std"] == a["parameters_std"]
+    assert b["data_report"]["channels"]["columns"] == COLUMN and "channels" not in a["data_report"]
 
 
 def test_calibrate_takes_the_same_map(files, tmp_path, capsys):
