@@ -191,7 +191,9 @@ class ComparisonPreset:
             if self.table and not given:
                 raise InputError(f"{name} = {','.join(map(str, given))!r}: expected at least one ({words})")
         if not self.table and not self.sign_seeds and not self.consistency:
-            raise InputError("table = no: nothing left to run; give --sign-seeds N or --consistency, or keep the table")
+            raise InputError(
+                "table = no: nothing left to run; give --n-sign-seeds N or --consistency, or keep the table"
+            )
         for ld in self.loads:
             if ld not in LOADS:
                 raise InputError(f"loads: {ld!r}: expected {', '.join(LOADS[:-1])} or {LOADS[-1]}")
