@@ -183,7 +183,7 @@ def test_compare_piped_shows_a_line_per_finished_task_and_writes_the_overlay(tmp
     problem.write_text((ROOT / "problems" / "membrane.toml").read_text().replace("nodes = [25, 13]", "nodes = [13, 7]"))
     err = tmp_path / "stderr.txt"
     with open(err, "w") as fh:
-        p = _cli("compare", str(problem), "--loads", "L1", "--noise", "5", "--seeds", "1", "--methods",
+        p = _cli("compare", str(problem), "--loads", "L1", "--noise", "5", "--n-seeds", "1", "--methods",
                  "mhe,jekf-tuned", "--no-oracle", "--truth-mesh", "25x13", "--out", str(tmp_path / "cmp"),
                  stdout=subprocess.PIPE, stderr=fh, text=True)  # fmt: skip
         out, _ = p.communicate(timeout=600)

@@ -130,7 +130,8 @@ class _Lines(logging.Formatter):
         level = record.levelname.lower()
         if record.levelno >= logging.WARNING:
             msg = one_line(record.getMessage())
-            if record.levelno == logging.WARNING and not msg.startswith("["):
+            own = record.name == "wingopt" or record.name.startswith("wingopt.cli")  # the command's own voice
+            if record.levelno == logging.WARNING and not msg.startswith("[") and not own:
                 # A warning an engine logged itself names its module, as the workflow's name their check.
                 msg = f"[{record.name.removeprefix('wingopt.')}] {msg}"
             return f"wingopt {self.command}: {level}: {msg}"

@@ -79,6 +79,7 @@ PER_COMMAND: dict[str, str] = {
     "--r": "morph: 1e-14 (the sampled design, docs/control_lqr.md); gains: 1e-10 (the continuous gain, "
     "which does not converge at 1e-14: wingopt.control.riccati_large.GAIN_R); both applied when not given",
     "--noise": "noise in PERCENT of each sensor's peak everywhere; compare takes a list (1,5)",
+    "--noise-percent": "the same option as --noise, its unit in the name (identify, design-sensors)",
     "--load-space": "identify: unset means fixed (its estimator's default); compare: fixed",
     "--state-prior": "identify: unset means 1 (its estimator's default); compare: 1",
     "--out": "the output directory everywhere; demo has a default (./wingopt-demo)",

@@ -4,11 +4,10 @@ Each study is a list of independent tasks (:mod:`wingopt.workflows.sweep.protoco
 engine (serial, a local cluster, or a scheduler); the per-case pieces (simulated cases, running a
 method, scoring it) are in :mod:`wingopt.workflows.studies`.
 
-:func:`run_comparison` is the ``wingopt compare`` preset (:class:`ComparisonPreset`): the table of
-L1–L3 x noise levels x seeds for the chosen methods (with the MHE's oracle lambda), the MHE's sign
-and band study and the consistency study as one task list, recorded in ``DIR/records.jsonl`` as the
-tasks finish so that an interrupted study resumes where it stopped (nothing recorded is recomputed),
-then the report (``summary.json``, ``comparison.md``, :mod:`wingopt.workflows.comparison_report`).
+:func:`run_comparison` is the ``wingopt compare`` preset (:class:`ComparisonPreset`): L1–L3 x noise
+levels x seeds for the chosen methods (the MHE with its oracle lambda), the sign and band study and
+the consistency study as one task list, recorded in ``DIR/records.jsonl`` as they finish (a study
+resumes where it stopped), then the report (:mod:`wingopt.workflows.comparison_report`).
 """
 
 from __future__ import annotations
