@@ -127,7 +127,7 @@ def cases() -> list[dict]:
     }.items():
         for v in vals:
             add([*sim, opt, v, "--t-end", "0.1", *FAST, "--truth-mesh", "19x10", "--out", "{out}"])
-    add([*sim, "--pressure-bounds", "1", "0", "--backend", "cvxpy", "--t-end", "0.1", *FAST, "--out", "{out}"])
+    add([*sim, "--pressure-bounds", "1", "0", "--solver", "cvxpy", "--t-end", "0.1", *FAST, "--out", "{out}"])
     add(["identify", "membrane", "--out", "{out}"])
     add(["identify", "membrane", "--load", "L9", "--out", "{out}"])
     add(["identify", "plate", "--load", "L1", "--out", "{out}"])

@@ -281,7 +281,7 @@ def cases() -> list[dict]:
     add(
         "idl --pressure-bounds nan nan",
         "identify --load",
-        [*SIM, "--backend", "cvxpy", "--pressure-bounds", "nan", "nan", *out],
+        [*SIM, "--solver", "cvxpy", "--pressure-bounds", "nan", "nan", *out],
         names=["pressure-bounds", "pressure_bounds"],
     )
     add("idl --lambda 1e308", "identify --load", [*SIM, "--lambda", "1e308", *out], names=["lambda"])
@@ -1185,7 +1185,7 @@ def cases() -> list[dict]:
         "L1",
         "--noise",
         "1",
-        "--seeds",
+        "--n-seeds",
         "1",
         "--methods",
         "mhe",

@@ -224,9 +224,9 @@ def test_lambda_rules_have_distinct_names_per_method(small_file, tmp_path, capsy
 
 
 def test_options_of_the_mhe_only_are_refused_for_the_jekf(small_file, tmp_path, capsys):
-    argv = ["identify", str(small_file), "--load", "L1", "--method", "jekf", "--backend", "ipopt"]
+    argv = ["identify", str(small_file), "--load", "L1", "--method", "jekf", "--solver", "ipopt"]
     assert main(argv + ["--out", str(tmp_path / "x")]) == 2
-    assert "--backend is not used by the jekf-seed estimator" in capsys.readouterr().err
+    assert "--solver is not used by the jekf-seed estimator" in capsys.readouterr().err
 
 
 def test_data_at_another_sample_rate(small_file, tmp_path, capsys):
@@ -249,7 +249,7 @@ def test_data_at_another_sample_rate(small_file, tmp_path, capsys):
 
 def test_compare_command_writes_records_and_resumes(small_file, tmp_path, capsys):
     out = tmp_path / "cmp"
-    argv = ["compare", str(small_file), "--loads", "L1", "--noise", "5", "--seeds", "1", "--methods", "mhe"]
+    argv = ["compare", str(small_file), "--loads", "L1", "--noise", "5", "--n-seeds", "1", "--methods", "mhe"]
     argv += ["--no-oracle", "--truth-mesh", "25x13", "--out", str(out), "--doc", str(tmp_path / "doc.md")]
     assert main(argv) == 0
     text = capsys.readouterr().out
@@ -270,8 +270,8 @@ def test_compare_resume_counts_a_repeated_run_once(small_file, tmp_path, capsys)
     """The sign study re-runs the table's 5 % seeds and appends them again: a resumed report must
     still count each (load, noise, seed, method) once (it said 10/10 for 5 seeds before the fix)."""
     out = tmp_path / "cmp"
-    argv = ["compare", str(small_file), "--loads", "L1", "--noise", "5", "--seeds", "1", "--methods", "mhe"]
-    argv += ["--no-oracle", "--truth-mesh", "25x13", "--sign-seeds", "2", "--out", str(out)]
+    argv = ["compare", str(small_file), "--loads", "L1", "--noise", "5", "--n-seeds", "1", "--methods", "mhe"]
+    argv += ["--no-oracle", "--truth-mesh", "25x13", "--n-sign-seeds", "2", "--out", str(out)]
     assert main(argv) == 0
     first = json.loads((out / "summary.json").read_text())
     # table seed 0 (= sign seed 0: one task on the study engine) and sign seed 1

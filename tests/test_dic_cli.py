@@ -107,7 +107,7 @@ def test_shipped_dice_files_read_as_the_npz_frames():
 
 def test_dic_sensors_command_then_identify_data(tmp_path, capsys):
     out = tmp_path / "vs"
-    assert main(["dic-sensors", str(DICE_PROBLEM), "--frames", str(DICE), "--out", str(out), "--json"]) == 0
+    assert main(["dic-sensors", str(DICE_PROBLEM), "--dic", str(DICE), "--out", str(out), "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
     assert s["dic"]["route"] == "virtual sensors (slope, fit)" and s["samples"] == 3
     assert 0.005 < s["dic"]["initial_shape"]["peak_m"] < 0.008
@@ -115,19 +115,19 @@ def test_dic_sensors_command_then_identify_data(tmp_path, capsys):
     assert lines[0] == "t,S1,S2,S3,S4" and len(lines) == 4
     assert (out / "initial_shape.csv").read_text().startswith("x,y,w_m")
     # the strain route is refused on DICe's in-plane strains, in one line naming the way out
-    assert main(["dic-sensors", str(DICE_PROBLEM), "--frames", str(DICE), "--kind", "strain", "--out", str(out)]) == 2
+    assert main(["dic-sensors", str(DICE_PROBLEM), "--dic", str(DICE), "--kind", "strain", "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "strain_kind = 'inplane'" in err and "use kind = 'slope'" in err
     # a percent-strain mix-up is named
     bad = _problem(tmp_path, 'origin = [-70.0, 35.0]\ny_axis = "-y"\nunit = "m"\nframe_rate = 300\n')
-    assert main(["dic-sensors", str(bad), "--frames", str(DICE), "--out", str(tmp_path / "x")]) == 2
+    assert main(["dic-sensors", str(bad), "--dic", str(DICE), "--out", str(tmp_path / "x")]) == 2
     assert "mm read as m" in capsys.readouterr().err
 
 
 def test_virtual_sensors_of_the_standin_feed_identify_data(tmp_path):
     """``dic-sensors`` on the 450 frames, then ``identify --data`` reads the record (the batch estimator)."""
     out = tmp_path / "vs"
-    assert main(["dic-sensors", "membrane", "--frames", str(STANDIN), "--out", str(out)]) == 0
+    assert main(["dic-sensors", "membrane", "--dic", str(STANDIN), "--out", str(out)]) == 0
     rows = np.genfromtxt(out / "sensors.csv", delimiter=",", names=True)
     assert rows.size == 450 and np.all(np.isfinite(rows["S1"]))
     four, _ = read_measurements(ROOT / "examples" / "data" / "tunnel_300Hz.csv", ("S1", "S2", "S3", "S4"))

@@ -1,7 +1,7 @@
 """The issue's "Must show" list on the full protocol (slow: run with ``pytest -m slow``).
 
 Truth on 49x25, estimator on 25x13, 1 s at 1 ms, noise level estimated from the data. The same
-numbers, with the JEKF columns, are produced by ``wingopt compare membrane --sign-seeds 20
+numbers, with the JEKF columns, are produced by ``wingopt compare membrane --n-sign-seeds 20
 --consistency`` into ``docs/estimation_comparison.md``.
 """
 

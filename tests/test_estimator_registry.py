@@ -138,7 +138,7 @@ def test_the_command_line_refuses_an_unused_option_in_one_line(tmp_path, capsys)
     data = "examples/data/tunnel_calibration_300Hz.csv"  # any shipped record: the options are refused
     argv = ["identify", "membrane", "--data", data, "--out", str(tmp_path / "o")]
     cases = [(["--window", "0.1s"], "--window"), (["--lambda", "1e-6"], "--lambda")]
-    cases += [(["--backend", "ipopt"], "--backend"), (["--state-prior", "0.1"], "--state-prior")]
+    cases += [(["--solver", "ipopt"], "--solver"), (["--state-prior", "0.1"], "--state-prior")]
     for extra, flag in cases:
         assert main(argv + extra) == 2
         err = capsys.readouterr().err.strip()

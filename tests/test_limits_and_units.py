@@ -42,7 +42,7 @@ def _many_sensors(n: int) -> str:
     return head + body + tail
 
 
-CMP = ["compare", "membrane", "--loads", "L1", "--noise", "1", "--seeds", "1", "--methods", "mhe", "--no-oracle"]
+CMP = ["compare", "membrane", "--loads", "L1", "--noise", "1", "--n-seeds", "1", "--methods", "mhe", "--no-oracle"]
 MOR = ["morph", "plate", "--shape", "twist", "--mesh", "7x31", "--t-end", "0.2", "--no-plots"]
 DS = ["design-sensors", "membrane", "--count", "2", "--criterion", "a", "--nominal", "1", "--no-plots"]
 

@@ -194,7 +194,7 @@ def test_least_distance_solvers_agree():
             c, np.vstack([M[:1], M[:1]]), [1.0, -3.0], [2.0, -2.0]
         )
     assert exc.value.backend == "cvxpy-clarabel" and exc.value.context == "mhe"
-    assert solver_flag_hint("identify", exc.value) == " (--backend numpy|cvxpy|ipopt)"
+    assert solver_flag_hint("identify", exc.value) == " (--solver numpy|cvxpy|ipopt)"
     with pytest.raises(InputError, match="qp_solver = 'piqp': expected one of daqp, clarabel, osqp"):
         LeastDistanceQP("piqp")
 

@@ -183,7 +183,7 @@ def test_compare_piped_shows_a_line_per_finished_task_and_writes_the_overlay(tmp
     problem.write_text((ROOT / "problems" / "membrane.toml").read_text().replace("nodes = [25, 13]", "nodes = [13, 7]"))
     err = tmp_path / "stderr.txt"
     with open(err, "w") as fh:
-        p = _cli("compare", str(problem), "--loads", "L1", "--noise", "5", "--seeds", "1", "--methods",
+        p = _cli("compare", str(problem), "--loads", "L1", "--noise", "5", "--n-seeds", "1", "--methods",
                  "mhe,jekf-tuned", "--no-oracle", "--truth-mesh", "25x13", "--out", str(tmp_path / "cmp"),
                  stdout=subprocess.PIPE, stderr=fh, text=True)  # fmt: skip
         out, _ = p.communicate(timeout=600)
@@ -201,7 +201,7 @@ def test_compare_piped_shows_a_line_per_finished_task_and_writes_the_overlay(tmp
 
 
 def test_a_killed_childs_temporaries_are_removed_and_an_earlier_result_put_back(tmp_path):
-    from wingopt.cli import _remove_own_temporaries
+    from wingopt.cli.process import remove_own_temporaries
 
     out = tmp_path / "run"
     (tmp_path / ".run.tmp-4242-abc").mkdir()
@@ -210,6 +210,6 @@ def test_a_killed_childs_temporaries_are_removed_and_an_earlier_result_put_back(
     old = tmp_path / ".run.old-4242"
     old.mkdir()
     (old / "summary.json").write_text('{"earlier": 1}')
-    _remove_own_temporaries(str(out), 4242)
+    remove_own_temporaries(str(out), 4242)
     assert sorted(p.name for p in tmp_path.iterdir()) == [".run.tmp-999-xyz", "run"]
     assert (out / "summary.json").read_text() == '{"earlier": 1}'

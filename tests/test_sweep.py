@@ -299,7 +299,7 @@ def test_compare_resumes_the_records_of_the_pre_engine_compare(tmp_path, capsys)
     problem = tmp_path / "small.toml"
     problem.write_text((ROOT / "problems" / "membrane.toml").read_text().replace("nodes = [25, 13]", "nodes = [13, 7]"))
     out = tmp_path / "cmp"
-    argv = ["compare", str(problem), "--loads", "L1", "--noise", "5", "--seeds", "1", "--methods", "mhe"]
+    argv = ["compare", str(problem), "--loads", "L1", "--noise", "5", "--n-seeds", "1", "--methods", "mhe"]
     argv += ["--no-oracle", "--truth-mesh", "25x13", "--out", str(out), "--json"]
     assert main(argv) == 0
     first = json.loads(capsys.readouterr().out.splitlines()[-1])

@@ -20,9 +20,9 @@ import re
 import signal
 import sys
 import threading
-from pathlib import Path
 
 from wingopt import __version__
+from wingopt.cli.process import die_with_parent, exit_now, kill, remove_own_temporaries
 from wingopt.errors import InputError, SolverError
 from wingopt.optim.registry import available_backends
 
@@ -60,7 +60,7 @@ def add_force_option(parser, option: str, name: str = "FILE") -> None:
     )
 
 
-SOLVER_FLAGS = {("morph", "qp"): ("--solver", "qp"), ("identify", "mhe"): ("--backend", "window")}
+SOLVER_FLAGS = {("morph", "qp"): ("--solver", "qp"), ("identify", "mhe"): ("--solver", "window")}
 """(command, context of a :class:`SolverError`) -> the flag that picks another solver, and the
 capability (:mod:`wingopt.optim.registry`) whose installed names it takes."""
 
@@ -130,7 +130,8 @@ class _Lines(logging.Formatter):
         level = record.levelname.lower()
         if record.levelno >= logging.WARNING:
             msg = one_line(record.getMessage())
-            if record.levelno == logging.WARNING and not msg.startswith("["):
+            own = record.name == "wingopt" or record.name.startswith("wingopt.cli")  # the command's own voice
+            if record.levelno == logging.WARNING and not msg.startswith("[") and not own:
                 # A warning an engine logged itself names its module, as the workflow's name their check.
                 msg = f"[{record.name.removeprefix('wingopt.')}] {msg}"
             return f"wingopt {self.command}: {level}: {msg}"
@@ -213,26 +214,6 @@ estimate on a signal) and for the other commands (``compare``, ``sweep``: a dask
 where a signal is honoured between calls."""
 
 
-def _remove_own_temporaries(out, pid: int | None = None) -> None:
-    """Remove the temporary directories process ``pid`` (default this one) made for ``out``
-    (``.NAME.tmp-PID-*``, :class:`~wingopt.results.ResultDirectory`); an earlier result it had moved
-    aside (``.NAME.old-PID``) goes back in place."""
-    import shutil
-
-    if not out or str(out) == "-":
-        return
-    target = Path(out).expanduser().absolute()
-    pid = os.getpid() if pid is None else pid
-    for tmp in target.parent.glob(f".{target.name}.tmp-{pid}-*"):
-        shutil.rmtree(tmp, ignore_errors=True)
-    old = target.parent / f".{target.name}.old-{pid}"  # killed between the two renames of a commit
-    if old.is_dir() and not old.is_symlink():
-        if target.exists():
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(old, target)  # the earlier results back in place
-
-
 def _supervise(args) -> int:
     """Run the command in a forked child and wait; on SIGINT/SIGTERM/SIGHUP kill the child, remove
     its temporary output directories and report the signal (:data:`SUPERVISED`)."""
@@ -248,54 +229,26 @@ def _supervise(args) -> int:
             signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole group: the parent acts
             signal.signal(signal.SIGHUP, signal.SIG_IGN)
             signal.signal(signal.SIGTERM, signal.SIG_DFL)
-            _die_with_parent()
+            die_with_parent()
             code = _run(args)
         finally:
-            _exit_now(code)
+            exit_now(code)
     name = f"wingopt {args.command}"
     try:
         _, status = os.waitpid(pid, 0)
     except (KeyboardInterrupt, Terminated) as exc:
-        _kill(pid)
-        _remove_own_temporaries(getattr(args, "out", None), pid)
+        kill(pid)
+        remove_own_temporaries(getattr(args, "out", None), pid)
         signum = exc.signum if isinstance(exc, Terminated) else signal.SIGINT
         what = "interrupted (Ctrl-C)" if signum == signal.SIGINT else f"terminated by {signal.Signals(signum).name}"
         _say(f"{name}: {what}; nothing written")
         return 128 + signum
     code = os.waitstatus_to_exitcode(status)
     if code < 0:  # the child was killed (the out-of-memory killer, a signal sent to it alone)
-        _remove_own_temporaries(getattr(args, "out", None), pid)
+        remove_own_temporaries(getattr(args, "out", None), pid)
         _say(f"{name}: error: the run was killed by {signal.Signals(-code).name}; nothing written")
         return 128 - code
     return code
-
-
-def _die_with_parent() -> None:
-    """Linux: the child gets SIGKILL if the watching process dies (killed with -9 itself)."""
-    try:
-        import ctypes
-
-        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError, TypeError):
-        pass
-
-
-def _kill(pid: int) -> None:
-    try:
-        os.kill(pid, signal.SIGKILL)
-        os.waitpid(pid, 0)
-    except (ProcessLookupError, ChildProcessError):
-        pass
-
-
-def _exit_now(code: int) -> None:
-    """End the (child) process with ``code`` at once, its output flushed."""
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):
-            pass
-    os._exit(code)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -305,11 +258,13 @@ def main(argv: list[str] | None = None) -> int:
     128 + N terminated by signal N (143 for SIGTERM). Each failure is one line on stderr.
     """
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, deprecated = _parse(parser, argv)
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_INPUT
     _configure_logging(args)
+    for message in deprecated:  # old option spellings (wingopt.cli.options.DEPRECATED): one line each
+        log.warning("%s", message)
     _RECEIVED.clear()
     old = _install_handlers()
     main_thread = threading.current_thread() is threading.main_thread() and bool(old)
@@ -365,6 +320,24 @@ def _run(args) -> int:
             raise
         _say(f"{name}: internal error: {type(exc).__name__}: {exc}; please report it")
         return EXIT_INTERNAL
+
+
+def _parse(parser, argv):
+    """Parsed arguments and the deprecation messages of old option spellings (each once)."""
+    import warnings
+
+    from wingopt.cli.options import DeprecatedOptionWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", DeprecatedOptionWarning)
+        args = parser.parse_args(argv)
+    messages = []
+    for w in caught:
+        if issubclass(w.category, DeprecatedOptionWarning):
+            messages.append(str(w.message))
+        else:  # not ours: as it would have been without the catch
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return args, list(dict.fromkeys(messages))
 
 
 def _say(line: str) -> None:

@@ -9,10 +9,12 @@ frequencies; the fit gives the prestrains and the damping with their posterior, 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 
 from wingopt.cli import OUT_HELP, add_force_option
-from wingopt.problem import parse_mesh
+from wingopt.cli import options as opt
+from wingopt.problem import load_problem, parse_mesh
 from wingopt.resources import parse_size
 from wingopt.results import check_new_file, check_writable, to_jsonable
 from wingopt.workflows.calibrate import calibrate_membrane, calibration_inputs, write_calibration_outputs
@@ -60,6 +62,7 @@ def register(sub, common) -> None:
     p.add_argument("--noise-std", type=float, help="sensor noise std (default: estimated from the data)")
     p.add_argument("--max-memory", metavar="SIZE", help="refuse runs estimated to need more (e.g. 4G)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    opt.add_channel_options(p)
     p.set_defaults(func=run)
 
 
@@ -68,8 +71,12 @@ def run(args) -> int:
     check_writable(args.out, inputs=[*inputs, ("--write-problem", args.write_problem)])
     if args.write_problem is not None:
         check_new_file(args.write_problem, "--write-problem", force=args.force, inputs=inputs)
+    problem = args.problem
+    if opt.channel_options_given(args):  # a DAQ's columns, gains, offsets over the problem's [measurements]
+        problem = load_problem(args.problem)
+        problem = dataclasses.replace(problem, measurements=opt.channel_map(args, problem))
     run_ = calibrate_membrane(
-        args.problem,
+        problem,
         args.data,
         nodes=parse_mesh(args.mesh) if args.mesh else None,
         release_peak=args.release_peak,

@@ -4,7 +4,7 @@ Runs the simulated protocol (truth on 49x25, estimator on the problem's mesh) fo
 levels x noise seeds with the MHE, the seed-faithful JEKF and the tuned JEKF, prints the table
 (mean and min–max over seeds) next to the seed's numbers and writes it, with every record, to
 ``--out``. It is a preset sweep on the study engine (:func:`wingopt.workflows.comparison.run_comparison`):
-``--jobs N`` runs N worker processes of a local dask cluster (1: in this process), ``--scheduler``
+``--workers N`` runs N worker processes of a local dask cluster (1: in this process), ``--scheduler``
 attaches to a running one. Records are appended to ``DIR/records.jsonl`` as they finish, so an
 interrupted study resumes where it stopped (``--resume``; nothing recorded is recomputed) and
 methods can be run separately and merged. Without ``--resume`` the records file is started afresh.
@@ -19,6 +19,7 @@ import argparse
 import json
 
 from wingopt.cli import add_force_option
+from wingopt.cli import options as opt
 from wingopt.cli.identify import parse_noise
 from wingopt.cli.sweep import add_engine_options, announce, engine_settings
 from wingopt.errors import InputError
@@ -29,10 +30,10 @@ from wingopt.workflows.comparison import JEKF_MODES, ComparisonPreset, run_compa
 ORDER = 40
 
 EXAMPLE = """examples:
-  wingopt compare membrane --out runs/compare --doc docs/estimation_comparison.md --jobs 2
-  wingopt compare membrane --methods mhe --seeds 5 --out runs/compare --resume
-  wingopt compare membrane --table no --sign-seeds 20 --consistency --out runs/extra
-  wingopt compare membrane --loads L1 --noise 1 --seeds 1 --jekf-order full --out runs/exact
+  wingopt compare membrane --out runs/compare --doc docs/estimation_comparison.md --workers 2
+  wingopt compare membrane --methods mhe --n-seeds 5 --out runs/compare --resume
+  wingopt compare membrane --table no --n-sign-seeds 20 --consistency --out runs/extra
+  wingopt compare membrane --loads L1 --noise 1 --n-seeds 1 --jekf-order full --out runs/exact
   (--noise is in PERCENT, as for identify: --noise 1,5)"""
 
 
@@ -49,7 +50,7 @@ def register(sub, common) -> None:
     p.add_argument("problem", help="membrane problem file or built-in name")
     p.add_argument("--loads", default="L1,L2,L3", help="comma-separated load cases (default L1,L2,L3)")
     p.add_argument("--noise", default="1,5", help="noise levels in percent (default 1,5)")
-    p.add_argument("--seeds", type=int, default=5, help="noise seeds 0..N-1 (default 5)")
+    opt.add(p, "--n-seeds", dest="seeds", default=5, help="noise seeds 0..N-1 (default 5)", aliases=("--seeds",))
     p.add_argument(
         "--first-seed",
         type=int,
@@ -59,7 +60,16 @@ def register(sub, common) -> None:
     p.add_argument("--methods", default="mhe,jekf-seed,jekf-tuned", help="methods (default all three)")
     p.add_argument("--table", choices=("yes", "no"), default="yes", help="run the comparison table (default yes)")
     p.add_argument("--no-oracle", action="store_true", help="skip the MHE's oracle-lambda runs")
-    p.add_argument("--sign-seeds", type=int, default=0, help="MHE sign/band check over this many seeds (5 %% noise)")
+    opt.add(
+        p,
+        "--n-sign-seeds",
+        dest="sign_seeds",
+        type=int,
+        metavar="N",
+        default=0,
+        help="MHE sign/band check over N seeds (5 %% noise)",
+        aliases=("--sign-seeds",),
+    )
     p.add_argument("--consistency", action="store_true", help="run the sensor-count consistency study")
     p.add_argument("--load-space", choices=("fixed", "free"), default="fixed", help="MHE load space")
     p.add_argument("--state-prior", default="1", help="MHE initial-state prior: a number (default 1) or 'evidence'")
@@ -71,8 +81,13 @@ def register(sub, common) -> None:
         help=f"the JEKFs keep their lowest N modes (default {JEKF_MODES}, as the demo: ~10x faster, final errors "
         "within a few per cent of the exact filter's, docs/estimation_comparison.md) or every mode: 'full' (exact)",
     )
-    p.add_argument(
-        "--jobs", type=int, default=1, help="worker processes of a local dask cluster (default 1: in this process)"
+    opt.add(
+        p,
+        "--workers",
+        dest="jobs",
+        default=1,
+        help="worker processes of a local dask cluster (default 1: in this process)",
+        aliases=("--jobs",),
     )
     p.add_argument("--resume", action="store_true", help="keep the records already in DIR/records.jsonl")
     p.add_argument(
@@ -88,7 +103,7 @@ def register(sub, common) -> None:
     )
     add_force_option(p, "--doc", "FILE")
     p.add_argument("--json", action="store_true", help="print the summary as JSON instead of the table")
-    add_engine_options(p, workers_flag="--jobs")
+    add_engine_options(p, workers_flag=None)
     p.set_defaults(func=run)
 
 
@@ -140,7 +155,7 @@ def run(args) -> int:
         jekf_modes=parse_order(args.jekf_order),
     )
     if args.jobs < 1:
-        raise InputError(f"jobs = {args.jobs}: expected a positive integer")
+        raise InputError(f"workers = {args.jobs}: expected a positive integer")
     args.serial = args.serial or (args.jobs <= 1 and not args.scheduler)
 
     def start(engine) -> None:

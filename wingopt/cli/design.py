@@ -13,6 +13,7 @@ import argparse
 import json
 
 from wingopt.cli import OUT_HELP, add_force_option
+from wingopt.cli import options as opt
 from wingopt.errors import InputError
 
 ORDER = 35
@@ -54,7 +55,7 @@ def register(sub, common) -> None:
         "--noise",
         "--noise-percent",
         dest="noise",
-        type=float,
+        type=opt.percent,
         default=1.0,
         help="noise in PERCENT of each sensor's peak (default 1; Python: noise_fraction = this / 100)",
     )

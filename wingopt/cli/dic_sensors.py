@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from wingopt.cli import options as opt
 from wingopt.membrane.virtual_sensors import KINDS, METHODS
 from wingopt.results import check_writable, to_jsonable
 from wingopt.workflows.dic import dic_sensors, write_dic_sensors_outputs
@@ -21,9 +22,9 @@ from wingopt.workflows.dic import dic_sensors, write_dic_sensors_outputs
 ORDER = 32
 
 EXAMPLE = """examples:
-  wingopt dic-sensors membrane --frames examples/data/tunnel_dic_300Hz.npz --out runs/vs
+  wingopt dic-sensors membrane --dic examples/data/tunnel_dic_300Hz.npz --out runs/vs
   wingopt identify membrane --data runs/vs/sensors.csv --out runs/vs_id      # any estimator of sensor series
-  wingopt dic-sensors examples/tunnel_dice.toml --frames examples/data/tunnel_dice --out runs/dice
+  wingopt dic-sensors examples/tunnel_dice.toml --dic examples/data/tunnel_dice --out runs/dice
   wingopt identify membrane --dic examples/data/tunnel_dic_300Hz.npz --out runs/ff   # the full field instead
   (the [dic] table of the problem maps DICe coordinates to the wing: docs/dic.md)"""
 
@@ -39,7 +40,8 @@ def register(sub, common) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("problem", help="problem file (.toml; its [dic] table maps the frames) or built-in name (membrane)")
-    p.add_argument("--frames", required=True, metavar="DIR|FILE.npz", help="the DIC frames")
+    src = p.add_mutually_exclusive_group(required=True)  # --frames: the old spelling
+    opt.add(src, "--dic", dest="frames", metavar="DIR|FILE.npz", help="the DIC frames", aliases=("--frames",))
     p.add_argument(
         "--kind",
         choices=KINDS,

@@ -62,7 +62,7 @@ def _fmt(v) -> str:
     return f"{v:.6g}" if isinstance(v, float) else str(v)
 
 
-def run_stream(args, options) -> int:
+def run_stream(args, options, channels=None) -> int:
     """``wingopt identify PROBLEM --follow FILE`` / ``--data -``; returns the exit code."""
     from wingopt.cli import _quiet_stdout
     from wingopt.estimation.registry import check_options, resolve
@@ -118,6 +118,7 @@ def run_stream(args, options) -> int:
             idle_timeout=idle,
             stop=stop,
             on_estimate=show,
+            channels=channels,
         )
     finally:
         # A second signal after the stream ended (a double Ctrl-C) must not turn the written record

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 
 from wingopt.cli import OUT_HELP, follow
+from wingopt.cli import options as opt
+from wingopt.cli.options import parse_noise
 from wingopt.errors import InputError
 from wingopt.estimation.registry import METHOD_ALIASES, METHODS, MODEL_ALIASES, MODELS
 from wingopt.optim.registry import solver_names
@@ -37,24 +38,10 @@ examples:
   wingopt identify membrane --load LE --truth berger --truth-prestrain 0.06 0.04 --out runs/real
   wingopt identify membrane --load L1 --truth berger --gust --out runs/gust
   wingopt identify membrane --data gusty.csv --load-model random_walk --load-timescale 0.5 --out runs/gust
-  (CSV: header 't,S1,S2,S3,S4', time in s, dimensionless stretch; empty cells = missing samples)"""
-
-
-def parse_noise(text: str) -> float:
-    """``"1"`` or ``"1%"`` -> 0.01. Percent is the unit; bare values in (0, 0.1) are ambiguous."""
-    from wingopt.values import NoiseLevel
-
-    s = str(text).strip()
-    m = re.fullmatch(r"([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*(%?)", s)
-    if not m:
-        raise InputError(f"noise = {text!r}: expected a percentage, e.g. 1 for 1 % (or '1%')")
-    value, pct = float(m.group(1)), m.group(2) == "%"
-    if not pct and 0 < value < 0.1:
-        raise InputError(
-            f"noise = {text!r}: ambiguous, the noise is in percent (1 means 1 %); "
-            f"for {100 * value:g} % write {100 * value:g}, for {value:g} % write '{value:g}%'"
-        )
-    return NoiseLevel.from_percent(value).fraction
+  wingopt identify membrane --data daq.csv --time-column time_s --columns S1=ch1,S2=ch2,S3=ch3,S4=ch4 \\
+      --gain 1e-5 --offset 250 --out runs/daq   # stretch = gain * (raw - offset)
+  (CSV: header 't,S1,S2,S3,S4', time in s, dimensionless stretch; empty cells = missing samples; a DAQ's own
+  columns and units: --columns, --gain, --offset (stretch = gain * (raw - offset)) or the problem's [measurements])"""
 
 
 def register(sub, common) -> None:
@@ -88,11 +75,11 @@ def register(sub, common) -> None:
         default="1",
         help="simulated noise in PERCENT of each sensor's peak (default 1; Python: noise_percent)",
     )
-    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
-    p.add_argument("--truth-mesh", default="49x25", help="mesh of the simulated truth (default 49x25)")
+    opt.add(p, "--seed")
+    opt.add(p, "--truth-mesh")
     p.add_argument("--same-mesh", action="store_true", help="seed protocol: simulate the truth on the estimator's mesh")
-    p.add_argument("--t-end", type=float, default=1.0, help="simulated duration, s (default 1)")
-    p.add_argument("--mesh", help="estimator mesh NXxNY (default: the problem's)")
+    opt.add(p, "--t-end", default=1.0, help="simulated duration, s (default 1)")
+    opt.add(p, "--mesh", help="estimator mesh NXxNY (default: the problem's)")
     p.add_argument(
         "--method",
         choices=METHODS + tuple(METHOD_ALIASES),
@@ -130,10 +117,8 @@ def register(sub, common) -> None:
     t.add_argument("--truth-damping", type=float, default=1.0, help="truth damping factor (default 1)")
     t.add_argument("--gust", action="store_true", help="1-cos gust on the load: +60 %% over 0.2 s from t = 0.4 s")
     g = p.add_argument_group("estimator options (each refused by an estimator that does not use it)")
-    g.add_argument("--backend", dest="solver", choices=solver_names("window"), help="mhe window solver (numpy)")
-    g.add_argument(
-        "--qp-solver", choices=solver_names("least-distance"), help="QP solver of --backend cvxpy (clarabel)"
-    )
+    opt.add(g, "--solver", choices=solver_names("window"), help="mhe window solver (numpy)", aliases=("--backend",))
+    g.add_argument("--qp-solver", choices=solver_names("least-distance"), help="QP solver of --solver cvxpy (clarabel)")
     g.add_argument("--load-space", choices=("fixed", "free"), help="mhe load basis (default fixed)")
     g.add_argument(
         "--state-prior",
@@ -174,13 +159,12 @@ def register(sub, common) -> None:
     g.add_argument("--modes", type=int, help="membrane modes kept (mhe 40, batch and ekf 48, jekf all)")
     g.add_argument("--pressure-bounds", nargs=2, type=float, metavar=("MIN", "MAX"), help="Pa (mhe, cvxpy/ipopt)")
     p.add_argument("--initial-load", type=float, help="sign prior, Pa (default: the problem's initial_load)")
-    p.add_argument("--noise-std", type=float, help="sensor noise std (default: estimated from the data)")
-    p.add_argument(
-        "--max-memory", metavar="SIZE", help="refuse runs estimated to need more (e.g. 4G; default: what is available)"
-    )
-    p.add_argument("--no-plots", action="store_true", help="skip the figures")
+    opt.add(p, "--noise-std")
+    opt.add(p, "--max-memory")
+    opt.add(p, "--no-plots")
     p.add_argument("--out", required=True, help=OUT_HELP)
-    p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    opt.add(p, "--json")
+    opt.add_channel_options(p)
     follow.add_options(p)
     p.set_defaults(func=run)
 
@@ -221,8 +205,11 @@ def run(args) -> int:
     problem = load_problem(args.problem)
     if problem.kind != "membrane":
         raise InputError(f"problem = {args.problem!r}: identify needs a membrane problem, got kind {problem.kind!r}")
+    channels = opt.channel_map(args, problem)
+    if channels is not None and not (args.data or args.follow):
+        raise InputError("--columns/--gain/--offset/--time-column/--time-unit: apply to --data or --follow only")
     if follow.wants_stream(args):
-        return follow.run_stream(args, options)
+        return follow.run_stream(args, options, channels)
     if args.load and not args.t_end > 0:
         raise InputError(f"t-end = {args.t_end!r}: expected a positive duration (s)")
     run_ = identify(
@@ -243,6 +230,7 @@ def run(args) -> int:
         truth_prestrain=tuple(args.truth_prestrain) if args.truth_prestrain else None,
         truth_damping=args.truth_damping,
         gust=_gust() if args.gust else None,
+        channels=channels if args.data else None,
     )
     write_identify_outputs(run_, args.out, plots=not args.no_plots)
     _print(to_jsonable(run_.summary()), args)  # its warnings were logged once, as they arose

@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from wingopt.cli.options import add
 from wingopt.errors import InputError
 
 ORDER = 45
@@ -30,9 +31,7 @@ def add_engine_options(p: argparse.ArgumentParser, workers_flag: str = "--worker
     x.add_argument("--serial", action="store_true", help="run every task in this process (no dask; debugging)")
     if workers_flag == "--workers":
         x.add_argument("--cluster", choices=("slurm", "pbs"), help="start a dask-jobqueue cluster (spec [cluster])")
-        g.add_argument(
-            "--workers", type=int, help="local worker processes (default: CPU count) or batch jobs (--cluster)"
-        )
+        add(g, "--workers", help="local worker processes (default: CPU count) or batch jobs (--cluster)")
     g.add_argument("--retries", type=int, help="re-runs of a task whose worker died or that failed (default 2)")
 
 

@@ -31,7 +31,7 @@ OPTION_FLAGS = {
     "lam": "--lambda/--lambda-rule",
     "window": "--window",
     "stride": "--stride",
-    "solver": "--backend",
+    "solver": "--solver",
     "qp_solver": "--qp-solver",
     "modes": "--modes",
     "load_model": "--load-model",

@@ -95,11 +95,11 @@ def _solver_is(*names: str) -> Callable[[IdentifyOptions], bool]:
 
 
 _MHE_REQUIRES = (
-    ("qp_solver", _solver_is("cvxpy"), "it picks the QP solver of --backend cvxpy"),
+    ("qp_solver", _solver_is("cvxpy"), "it picks the QP solver of --solver cvxpy"),
     (
         "pressure_bounds",
         _solver_is("cvxpy", "ipopt"),
-        "the numpy window solver has no bounds (--backend cvxpy or ipopt)",
+        "the numpy window solver has no bounds (--solver cvxpy or ipopt)",
     ),
     ("load_timescale", lambda o: o.load_model == "varying", "it is the time scale of --load-model random_walk"),
 )

@@ -12,6 +12,10 @@ a missing time, times not strictly increasing, irregular sampling (steps that ar
 multiples of the typical step; whole multiples are gaps and are filled with missing rows), and
 values that cannot be the dimensionless stretch ``s = alpha/(2A) ∫ |grad w|^2`` (a hint about
 units: percent or microstrain).
+
+A DAQ file with its own column names and units (``time_s,ch1,ch2,...`` in mV) is read through a
+:class:`~wingopt.measurements.channels.ChannelMap` (``channels``): the columns it names, converted
+by ``stretch = gain * (raw - offset)`` before these checks.
 """
 
 from __future__ import annotations
@@ -28,6 +32,8 @@ from pathlib import Path
 import numpy as np
 
 from wingopt.errors import DataFileError
+from wingopt.measurements.channels import CONVENTION as CONVENTION_TEXT
+from wingopt.measurements.channels import ChannelMap
 from wingopt.measurements.series import Measurements
 
 __all__ = ["CsvReport", "read_measurements", "MISSING_TOKENS", "MAX_STRETCH"]
@@ -51,8 +57,10 @@ class CsvReport:
     missing_rows: int
     gap_rows_filled: int
     ignored_columns: list[str] = field(default_factory=list)
+    channels: dict | None = None
 
     def as_dict(self) -> dict:
+        extra = {} if self.channels is None else {"channels": self.channels}
         return {
             "file": self.path,
             "rows": self.rows,
@@ -60,6 +68,7 @@ class CsvReport:
             "missing_rows": self.missing_rows,
             "gap_rows_filled": self.gap_rows_filled,
             "ignored_columns": self.ignored_columns,
+            **extra,
         }
 
 
@@ -120,7 +129,9 @@ def _read_text(path: str | Path) -> str:
 _EMPTY_CELL = re.compile(r"(?<=,)[ \t]*(?=,|$)|^[ \t]*(?=,)", re.MULTILINE)
 
 
-def _fast_table(path, text: str, sensor_names) -> tuple[np.ndarray, np.ndarray, list[str]] | None:
+def _fast_table(
+    path, text: str, sensor_names, channels: ChannelMap | None = None
+) -> tuple[np.ndarray, np.ndarray, list[str]] | None:
     """``np.loadtxt`` on a clean file: ``(t, values, ignored columns)``, or ``None`` to use the validator.
 
     Applies only to plain numeric files (empty cells and ``nan`` allowed, no quotes): anything else,
@@ -138,7 +149,9 @@ def _fast_table(path, text: str, sensor_names) -> tuple[np.ndarray, np.ndarray, 
             return None
         start = end + 1
     header = [h.strip() for h in line.split(",")]
-    if "t" not in header or len(set(header)) != len(header) or any(n not in header for n in sensor_names):
+    channels = channels or ChannelMap()
+    tcol, cols = channels.time, [channels.column(n) for n in sensor_names]
+    if tcol not in header or len(set(header)) != len(header) or any(c not in header for c in cols):
         return None
     body = text[start + len(line) :]
     try:
@@ -157,15 +170,21 @@ def _fast_table(path, text: str, sensor_names) -> tuple[np.ndarray, np.ndarray, 
         return None
     if table.shape[0] < 2 or table.shape[1] != len(header) or np.isinf(table).any():
         return None
-    t = table[:, header.index("t")]
-    vals = table[:, [header.index(n) for n in sensor_names]]
+    t = table[:, header.index(tcol)]
+    vals = table[:, [header.index(c) for c in cols]]
     if np.isnan(t).any():
         return None
-    ignored = [h for h in header if h != "t" and h not in sensor_names]
-    return t, vals, ignored
+    return t, vals, _ignored(header, sensor_names, channels)
 
 
-def read_measurements(path: str | Path, sensor_names: tuple[str, ...] | list[str]) -> tuple[Measurements, CsvReport]:
+def _ignored(header, sensor_names, channels: ChannelMap) -> list[str]:
+    used = {channels.time, *(channels.column(n) for n in sensor_names)}
+    return [h for h in header if h not in used]
+
+
+def read_measurements(
+    path: str | Path, sensor_names: tuple[str, ...] | list[str], channels: ChannelMap | None = None
+) -> tuple[Measurements, CsvReport]:
     """Read a measured record (CSV) for the given sensor names (problem order).
 
     A clean numeric file is parsed by ``np.loadtxt`` (1 h of 1 kHz, 4 sensors in ~3 s); a file with
@@ -177,13 +196,16 @@ def read_measurements(path: str | Path, sensor_names: tuple[str, ...] | list[str
         CSV file: a ``t`` column (s) and one column per sensor, headers = sensor names.
     sensor_names : sequence of str
         The problem's sensor names, in its order.
+    channels : ChannelMap, optional
+        The time and sensor columns and each sensor's ``gain`` and ``offset`` (``stretch = gain *
+        (raw - offset)``) of a DAQ file; ``None``: ``t`` in s and one stretch column per sensor name.
 
     Returns
     -------
     Measurements
         NaN where missing, on a uniform time grid.
     CsvReport
-        What was read: rows, missing rows and gaps, ignored columns.
+        What was read: rows, missing rows and gaps, ignored columns, the channel map (when one is given).
     """
     if isinstance(path, bytes) or not isinstance(path, (str, os.PathLike)) or not str(path).strip():
         raise DataFileError(f"path = {path!r}: expected the path of a CSV file")
@@ -194,51 +216,60 @@ def read_measurements(path: str | Path, sensor_names: tuple[str, ...] | list[str
     sensor_names = tuple(sensor_names)
     if not sensor_names:
         raise DataFileError("sensor_names = (): expected at least one sensor name")
+    if channels is not None and not isinstance(channels, ChannelMap):
+        raise DataFileError(f"channels = {channels!r}: expected a wingopt.measurements.ChannelMap or None")
+    given = channels is not None
+    channels = (channels or ChannelMap()).check(sensor_names)
     name = str(path)
     text = _read_text(path)
-    fast = _fast_table(path, text, sensor_names)
+    fast = _fast_table(path, text, sensor_names, channels)
     if fast is not None:
         t, vals, ignored = fast
         try:
-            return _finish(name, t, vals, None, sensor_names, ignored)
+            return _finish(name, t, vals, None, sensor_names, ignored, channels, given)
         except _NeedLines:
             pass
-    return _read_slow(name, text, sensor_names)
+    return _read_slow(name, text, sensor_names, channels, given)
 
 
 class _NeedLines(Exception):
     """An error was found by the fast path: re-read line by line to name the line."""
 
 
-def _read_slow(name: str, text: str, sensor_names) -> tuple[Measurements, CsvReport]:
+def _read_slow(
+    name: str, text: str, sensor_names, channels: ChannelMap | None = None, given: bool = False
+) -> tuple[Measurements, CsvReport]:
+    channels = channels or ChannelMap()
     lines = [(i + 1, ln) for i, ln in enumerate(text.splitlines()) if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
-        raise DataFileError(f"{name}: empty file: expected a header 't,{','.join(sensor_names)}' and data rows")
+        want = ",".join([channels.time, *(channels.column(s) for s in sensor_names)])
+        raise DataFileError(f"{name}: empty file: expected a header '{want}' and data rows")
     reader = csv.reader([ln for _, ln in lines])
     rows = list(reader)
     header = [h.strip() for h in rows[0]]
     if len(header) == 1 and (";" in header[0] or "\t" in header[0]):
         raise DataFileError(f"{name}:{lines[0][0]}: header {header[0]!r}: expected comma-separated columns")
-    it, cols = header_columns(name, lines[0][0], header, sensor_names)
+    it, cols = header_columns(name, lines[0][0], header, sensor_names, channels)
     if len(rows) < 2:
         raise DataFileError(f"{name}: header only, no data rows")
-    ignored = [h for h in header if h != "t" and h not in sensor_names]
+    ignored = _ignored(header, sensor_names, channels)
     t = np.empty(len(rows) - 1)
     vals = np.empty((len(rows) - 1, len(cols)))
     for r, row in enumerate(rows[1:]):
         line = lines[r + 1][0]
         if len(row) != len(header):
             raise DataFileError(f"{name}:{line}: {len(row)} values for {len(header)} columns")
-        t[r] = _cell(row[it], line, "t", name)
+        t[r] = _cell(row[it], line, channels.time, name)
         if math.isnan(t[r]):
-            raise DataFileError(f"{name}:{line}: t is missing: every row needs a time")
+            raise DataFileError(f"{name}:{line}: {channels.time} is missing: every row needs a time")
         for j, c in enumerate(cols):
-            vals[r, j] = _cell(row[c], line, sensor_names[j], name)
-    return _finish(name, t, vals, [ln for ln, _ in lines[1:]], sensor_names, ignored)
+            vals[r, j] = _cell(row[c], line, header[c], name)
+    return _finish(name, t, vals, [ln for ln, _ in lines[1:]], sensor_names, ignored, channels, given)
 
 
-def _finish(name, t, vals, line_numbers, sensor_names, ignored) -> tuple[Measurements, CsvReport]:
-    """Checks on the arrays (``line_numbers[k]``: file line of data row ``k``; ``None``: fast path)."""
+def _finish(name, t, vals, line_numbers, sensor_names, ignored, channels, given) -> tuple[Measurements, CsvReport]:
+    """Checks on the arrays (``line_numbers[k]``: file line of data row ``k``; ``None``: fast path),
+    after the channel map's conversion (the one place it is applied to a whole record)."""
 
     def line(k: int) -> int:
         if line_numbers is None:
@@ -247,6 +278,7 @@ def _finish(name, t, vals, line_numbers, sensor_names, ignored) -> tuple[Measure
 
     if t.size < 2:
         raise DataFileError(f"{name}: only {t.size} data row: expected a time series")
+    t, vals = channels.convert(t, vals, sensor_names)
     steps = np.diff(t)
     bad = np.flatnonzero(steps <= 0)
     if bad.size:
@@ -283,20 +315,44 @@ def _finish(name, t, vals, line_numbers, sensor_names, ignored) -> tuple[Measure
     if peak > MAX_STRETCH:
         raise DataFileError(
             f"{name}: sensor values up to {peak:.4g}: expected the dimensionless stretch s = alpha/(2A) ∫|grad w|^2 "
-            "(typically 1e-4..1e-1); are the values in percent or microstrain?"
+            f"(typically 1e-4..1e-1); {units_hint(channels)}"
         )
     missing_rows = int(np.count_nonzero(np.isnan(vals).any(axis=1)))
     meas = Measurements(t=grid_t, values=grid_vals, sensor_names=tuple(sensor_names), source=name)
-    report = CsvReport(name, int(t.size), dt, missing_rows, int(n - t.size), ignored)
+    report = CsvReport(
+        name, int(t.size), dt, missing_rows, int(n - t.size), ignored, channels.as_dict(sensor_names) if given else None
+    )
     return meas, report
 
 
-def header_columns(name: str, line: int, header: list[str], sensor_names) -> tuple[int, list[int]]:
-    """Columns of ``t`` and of each sensor (problem order) in a CSV header, or a one-line error."""
-    if "t" not in header:
-        raise DataFileError(f"{name}:{line}: header {header}: expected a 't' column (time in s)")
-    missing = [s for s in sensor_names if s not in header]
+def units_hint(channels: ChannelMap) -> str:
+    """The end of the message on values too large to be a stretch."""
+    if channels.gain or channels.offset:
+        return f"check the channel map's gain and offset ({channels.declared_in or 'given'}: {CONVENTION_TEXT})"
+    return "are the values in percent or microstrain (or raw DAQ units: give each sensor's gain and offset)?"
+
+
+def header_columns(
+    name: str, line: int, header: list[str], sensor_names, channels: ChannelMap | None = None
+) -> tuple[int, list[int]]:
+    """Columns of the time and of each sensor (problem order) in a CSV header, or a one-line error.
+
+    ``channels`` names the columns (default: ``t`` and the sensor names)."""
+    channels = channels or ChannelMap()
+    mapped = bool(channels.columns) or channels.time != "t"
+    if channels.time not in header:
+        what = (
+            f"the time column {channels.time!r} (channel map)" if channels.time != "t" else "a 't' column (time in s)"
+        )
+        raise DataFileError(f"{name}:{line}: header {header}: expected {what}")
+    missing = [s for s in sensor_names if channels.column(s) not in header]
     if missing:
+        if mapped:
+            cols = ", ".join(s if channels.column(s) == s else f"{channels.column(s)} ({s})" for s in missing)
+            raise DataFileError(
+                f"{name}:{line}: missing column(s) {cols}: expected the columns the channel map names "
+                f"(header {', '.join(header)})"
+            )
         raise DataFileError(
             f"{name}:{line}: missing sensor column(s) {', '.join(missing)}: expected one column per sensor "
             f"of the problem ({', '.join(sensor_names)})"
@@ -304,4 +360,4 @@ def header_columns(name: str, line: int, header: list[str], sensor_names) -> tup
     dup = next((h for h in header if header.count(h) > 1), None)
     if dup is not None:
         raise DataFileError(f"{name}:{line}: column {dup!r} appears twice")
-    return header.index("t"), [header.index(s) for s in sensor_names]
+    return header.index(channels.time), [header.index(channels.column(s)) for s in sensor_names]

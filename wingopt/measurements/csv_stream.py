@@ -4,7 +4,9 @@ Same format and checks as :func:`wingopt.measurements.csv_file.read_measurements
 ``t`` and one column per sensor, ``#`` comments, empty cells / ``nan`` / ``NA`` missing, values
 that cannot be a stretch refused), applied one row at a time: the sample period is the first time
 step; a later step that is a whole multiple of it is a gap, filled with missing rows; any other
-step is refused. A comment line ``# end`` (any case) marks the end of the stream.
+step is refused. A comment line ``# end`` (any case) marks the end of the stream. A
+:class:`~wingopt.measurements.channels.ChannelMap` names a DAQ's columns and converts its raw
+readings (``stretch = gain * (raw - offset)``), as for the batch reader.
 """
 
 from __future__ import annotations
@@ -16,7 +18,8 @@ import re
 import numpy as np
 
 from wingopt.errors import DataFileError
-from wingopt.measurements.csv_file import MAX_STRETCH, _cell, header_columns
+from wingopt.measurements.channels import ChannelMap
+from wingopt.measurements.csv_file import MAX_STRETCH, _cell, _ignored, header_columns, units_hint
 
 __all__ = ["CsvRowParser", "END_MARKER"]
 
@@ -40,6 +43,9 @@ class CsvRowParser:
         The problem's sensors, in its order.
     source : str
         Name used in error messages (file name or ``<stdin>``).
+    channels : ChannelMap, optional
+        The time and sensor columns and each sensor's gain and offset (default: ``t`` and the
+        sensor names, stretch as it is).
 
     Attributes
     ----------
@@ -50,14 +56,18 @@ class CsvRowParser:
     ignored_columns : list of str
     """
 
-    def __init__(self, sensor_names, source: str = "<stream>") -> None:
+    def __init__(self, sensor_names, source: str = "<stream>", channels: ChannelMap | None = None) -> None:
         self.sensor_names = tuple(sensor_names)
+        if channels is not None and not isinstance(channels, ChannelMap):
+            raise DataFileError(f"channels = {channels!r}: expected a wingopt.measurements.ChannelMap or None")
+        self.channels = (channels or ChannelMap()).check(self.sensor_names)
         self.source = source
         self.line = 0
         self.ended = False
         self.rows = self.missing_rows = self.gap_rows = 0
         self.ignored_columns: list[str] = []
         self._cols: list[int] | None = None
+        self._header_names: list[str] = []
         self._it = 0
         self._ncol = 0
         self._t0 = self._dt = None
@@ -95,7 +105,7 @@ class CsvRowParser:
             raise DataFileError(f"{self.source}:{self.line}: not a CSV line ({exc})") from None
         if self._new_file:
             self._new_file = False
-            if "t" in (h.strip() for h in row):  # the header again, at the top of the new file
+            if self.channels.time in (h.strip() for h in row):  # the header again, at the top of the new file
                 self._header(row)
                 return []
         if self._cols is None:
@@ -106,23 +116,26 @@ class CsvRowParser:
     def _header(self, row: list[str]) -> None:
         name, ln = self.source, self.line
         header = [h.strip() for h in row]
-        self._it, self._cols = header_columns(name, ln, header, self.sensor_names)
+        self._it, self._cols = header_columns(name, ln, header, self.sensor_names, self.channels)
         self._ncol = len(header)
-        self.ignored_columns = [h for h in header if h != "t" and h not in self.sensor_names]
+        self._header_names = header
+        self.ignored_columns = _ignored(header, self.sensor_names, self.channels)
 
     def _row(self, row: list[str]) -> list[tuple[float, np.ndarray]]:
         name, ln = self.source, self.line
         if len(row) != self._ncol:
             raise DataFileError(f"{name}:{ln}: {len(row)} values for {self._ncol} columns")
-        t = _cell(row[self._it], ln, "t", name)
+        t = _cell(row[self._it], ln, self.channels.time, name)
         if math.isnan(t):
-            raise DataFileError(f"{name}:{ln}: t is missing: every row needs a time")
-        vals = np.array([_cell(row[c], ln, s, name) for c, s in zip(self._cols, self.sensor_names)])
+            raise DataFileError(f"{name}:{ln}: {self.channels.time} is missing: every row needs a time")
+        raw = np.array([_cell(row[c], ln, self._header_names[c], name) for c in self._cols])
+        t, vals = self.channels.convert(t, raw, self.sensor_names)
+        t = float(t)
         finite = vals[np.isfinite(vals)]
         if finite.size and float(np.max(np.abs(finite))) > MAX_STRETCH:
             raise DataFileError(
                 f"{name}:{ln}: sensor value {float(np.max(np.abs(finite))):.4g}: expected the dimensionless stretch "
-                "(typically 1e-4..1e-1); are the values in percent or microstrain?"
+                f"(typically 1e-4..1e-1); {units_hint(self.channels)}"
             )
         out: list[tuple[float, np.ndarray]] = []
         if self._t_last is None:

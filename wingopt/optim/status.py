@@ -47,7 +47,7 @@ CONTEXT_HINTS = {
 }
 """What to try, by the caller's context. The context travels with the error
 (:attr:`SolverError.context <wingopt.errors.SolverError>`), so that a front end can name the
-setting that picks another solver (the CLI: ``--solver``, ``--backend``)."""
+setting that picks another solver (the CLI: ``--solver``)."""
 
 
 def status_from(backend: str, raw) -> SolveStatus:

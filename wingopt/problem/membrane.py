@@ -6,8 +6,10 @@ import dataclasses
 from dataclasses import dataclass
 
 from wingopt.errors import InputError
+from wingopt.measurements.channels import ChannelMap
 from wingopt.problem.dic import DICSettings, dic_from_table
 from wingopt.problem.fields import Table
+from wingopt.problem.measurements import measurements_from_table
 
 __all__ = ["MembraneMaterial", "StretchSensorSpec", "IdentificationSettings", "MembraneProblem", "from_table"]
 
@@ -103,6 +105,8 @@ class MembraneProblem:
     """A rectangular membrane wing with stretch sensors, clamped (zero deflection) on all edges.
 
     ``dic``: the ``[dic]`` table (how DIC frames map to the wing, :mod:`wingopt.problem.dic`), if any.
+    ``measurements``: the ``[measurements]`` table (a DAQ file's columns, gains and offsets,
+    :mod:`wingopt.problem.measurements`), if any.
     """
 
     width: float
@@ -114,6 +118,7 @@ class MembraneProblem:
     name: str = "membrane"
     source: str = "<memory>"
     dic: DICSettings | None = None
+    measurements: ChannelMap | None = None
 
     kind = "membrane"
 
@@ -244,6 +249,7 @@ def from_table(root: Table, name: str) -> MembraneProblem:
             noise = (ident.number("noise_std", positive=True),)
     ident.finish()
     dic = dic_from_table(root.table("dic")) if root.has("dic") else None
+    channels = measurements_from_table(root.table("measurements"), names) if root.has("measurements") else None
     root.finish()
     return MembraneProblem(
         width=width,
@@ -271,4 +277,5 @@ def from_table(root: Table, name: str) -> MembraneProblem:
         name=name,
         source=root.source,
         dic=dic,
+        measurements=channels,
     )

@@ -139,7 +139,7 @@ def calibrate_membrane(
     if isinstance(data, (str, Path)):
         if Path(data).is_dir():
             raise InputError(f"data = {str(data)!r}: is a directory, expected a CSV file")
-        meas, csv_report = read_measurements(data, problem.sensor_names)
+        meas, csv_report = read_measurements(data, problem.sensor_names, problem.measurements)
         report, source = csv_report.as_dict(), str(data)
     else:
         meas, source = as_measurements(data, problem.sensor_names), getattr(data, "source", "") or "<memory>"

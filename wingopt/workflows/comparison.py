@@ -4,11 +4,10 @@ Each study is a list of independent tasks (:mod:`wingopt.workflows.sweep.protoco
 engine (serial, a local cluster, or a scheduler); the per-case pieces (simulated cases, running a
 method, scoring it) are in :mod:`wingopt.workflows.studies`.
 
-:func:`run_comparison` is the ``wingopt compare`` preset (:class:`ComparisonPreset`): the table of
-L1–L3 x noise levels x seeds for the chosen methods (with the MHE's oracle lambda), the MHE's sign
-and band study and the consistency study as one task list, recorded in ``DIR/records.jsonl`` as the
-tasks finish so that an interrupted study resumes where it stopped (nothing recorded is recomputed),
-then the report (``summary.json``, ``comparison.md``, :mod:`wingopt.workflows.comparison_report`).
+:func:`run_comparison` is the ``wingopt compare`` preset (:class:`ComparisonPreset`): L1–L3 x noise
+levels x seeds for the chosen methods (the MHE with its oracle lambda), the sign and band study and
+the consistency study as one task list, recorded in ``DIR/records.jsonl`` as they finish (a study
+resumes where it stopped), then the report (:mod:`wingopt.workflows.comparison_report`).
 """
 
 from __future__ import annotations
@@ -191,7 +190,9 @@ class ComparisonPreset:
             if self.table and not given:
                 raise InputError(f"{name} = {','.join(map(str, given))!r}: expected at least one ({words})")
         if not self.table and not self.sign_seeds and not self.consistency:
-            raise InputError("table = no: nothing left to run; give --sign-seeds N or --consistency, or keep the table")
+            raise InputError(
+                "table = no: nothing left to run; give --n-sign-seeds N or --consistency, or keep the table"
+            )
         for ld in self.loads:
             if ld not in LOADS:
                 raise InputError(f"loads: {ld!r}: expected {', '.join(LOADS[:-1])} or {LOADS[-1]}")

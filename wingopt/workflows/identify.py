@@ -32,7 +32,7 @@ from wingopt.estimation.options import IdentifyOptions
 from wingopt.estimation.registry import check_options, resolve
 from wingopt.estimation.result import IdentificationResult
 from wingopt.estimation.runners import build
-from wingopt.measurements import Measurements, read_measurements
+from wingopt.measurements import ChannelMap, Measurements, read_measurements
 from wingopt.measurements.dic import DICFrames
 from wingopt.membrane import MembraneModel, TruthRecord
 from wingopt.membrane.loads import LOAD_CASES
@@ -174,6 +174,7 @@ def identify(
     noise_std: float | None = None,
     lam: LambdaChoice | None = None,
     noise: float | None = None,
+    channels: ChannelMap | None = None,
 ) -> IdentifyRun:
     """Estimate the load of a membrane problem from a simulated (``load``) or measured (``data``) record.
 
@@ -188,9 +189,10 @@ def identify(
         Simulated noise in PERCENT of each sensor's peak output (1 = 1 %), as ``--noise``.
     seed : int
         Noise seed.
-    data : path, Measurements or array, optional
-        Measured record instead of ``load``: a CSV file (``t`` column + one column per sensor), a
-        :class:`Measurements`, or an array ``(N, 1 + p)`` of rows ``t, s_1 .. s_p`` (problem's sensor order).
+    data, channels : path, Measurements or array; ChannelMap, optional
+        Measured record instead of ``load``: a CSV file (``t`` + one column per sensor, or a DAQ's columns,
+        gains, offsets by ``channels``, default the problem's ``[measurements]``; recorded in ``data.channels``),
+        a :class:`Measurements`, or an array ``(N, 1 + p)`` of rows ``t, s_1 .. s_p`` (problem's sensor order).
     dic : path or DICFrames, optional
         DIC frames instead (:mod:`wingopt.workflows.dic`, mapped by the problem's ``[dic]``): the
         full-field estimator by default (``method="fullfield"``); any other method gets the frames'
@@ -304,12 +306,9 @@ def identify(
         )
         membrane = MembraneModel.from_problem(problem)  # the first frame's shape may be its initial deflection
         meas = meas if opts.noise_std is None else _with_noise_std(meas, opts.noise_std)
-    elif isinstance(data, (str, Path)):
-        if Path(data).is_dir():
-            raise InputError(f"data = {str(data)!r}: is a directory, expected a CSV file")
-        meas, csv_report = read_measurements(data, problem.sensor_names)
-        report = csv_report.as_dict()
-        meas = _with_noise_std(meas, opts.noise_std)
+    elif isinstance(data, (str, Path)):  # read_measurements refuses a directory (one line naming data)
+        meas, report = read_measurements(data, problem.sensor_names, channels or problem.measurements)
+        meas, report = _with_noise_std(meas, opts.noise_std), report.as_dict()
     else:
         meas = _with_noise_std(sanity.as_measurements(data, problem.sensor_names), opts.noise_std)
     if load is None:

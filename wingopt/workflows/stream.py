@@ -70,6 +70,7 @@ def follow(
     idle_timeout: float | None = None,
     stop: dict | None = None,
     on_estimate: Callable[[int, tuple], None] | None = None,
+    channels=None,
 ) -> dict:
     """Identify a stream one sample at a time; returns the summary (also written to ``out/summary.json``).
 
@@ -93,6 +94,10 @@ def follow(
         Set ``stop["signal"] = NAME`` (from a signal handler) to end the stream cleanly.
     on_estimate : callable, optional
         ``on_estimate(k, row)`` after every sample (``row`` as :data:`COLUMNS`).
+    channels : ChannelMap, optional
+        The stream's time and sensor columns and each sensor's gain and offset (``stretch = gain *
+        (raw - offset)``); default: the problem's ``[measurements]`` table, if any. Recorded in the
+        summary's ``channels``.
 
     Returns
     -------
@@ -135,7 +140,8 @@ def follow(
     est = build(spec, MembraneModel.from_problem(problem), options, keep=False)
     method = f"{spec.method}-stream"
     name = source or "<stdin>"
-    parser = CsvRowParser(problem.sensor_names, name)
+    channels = channels if channels is not None else problem.measurements
+    parser = CsvRowParser(problem.sensor_names, name, channels)
     cpu, wall = LatencyStats(), LatencyStats()
     bad, first_bad = 0, None
     t_start = time.perf_counter()
@@ -198,6 +204,8 @@ def follow(
         summary["method"] = method
         summary["membrane"] = spec.model
         summary["options"] = options.as_dict()
+        if channels is not None:
+            summary["channels"] = parser.channels.as_dict(problem.sensor_names)
         summary["wall_s"] = time.perf_counter() - t_start
         write_json(tmp / "summary.json", to_jsonable(summary))
         writer.commit()
