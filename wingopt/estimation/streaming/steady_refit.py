@@ -9,7 +9,9 @@ least ``every_s`` of data, at most ``max_interval_s``), it is tested for steadin
 (:func:`~wingopt.estimation.realistic.steady_estimator.is_steady`) and, if steady, refitted by the
 whole-record estimator, whose steady lift the rows then carry (phase ``steady``). :meth:`finish`
 refits the whole record once more, so the stream's final answer is the batch estimate of the same
-samples, and a record that is not steady keeps the filter's.
+samples. A record found not steady at a look (a release rings at its start) is a transient record
+for good: the filter answers and the record is not looked at again (an hour-long protocol stream
+whose ringing has left the kept record must not start refitting it).
 """
 
 from __future__ import annotations
@@ -68,6 +70,7 @@ class SteadyRefit:
         self.result: IdentificationResult | None = None  # the last refit of a steady record
         self.refits: list[dict] = []
         self.final = False
+        self.transient = False  # a look found a transient: the filter's record for good
 
     # the live filter's protocol, passed through
     @property
@@ -105,6 +108,8 @@ class SteadyRefit:
 
     def finish(self) -> IdentificationResult | None:
         """Refit the whole record if it is steady (the stream's final answer); ``None`` if it is not."""
+        if self.transient:
+            return None
         if len(self._t) == self._looked_at:
             self.final = True
             if self.refits:
@@ -116,7 +121,7 @@ class SteadyRefit:
     # -- the looks ---------------------------------------------------------------------------------
     def _due(self) -> bool:
         dt = self.inner.dt
-        if not dt:
+        if not dt or self.transient:
             return False
         n, last = len(self._t), self._looked_at
         grown = (n - last) * dt
@@ -134,7 +139,7 @@ class SteadyRefit:
         if not is_steady(values):
             if self.result is not None:
                 log.warning("the stream is no longer steady at t = %.6g s: back to the live filter", self._t[-1])
-            self.result = None
+            self.result, self.transient = None, True
             return
         c0 = time.thread_time()
         self.result = self._refit(self._record())
