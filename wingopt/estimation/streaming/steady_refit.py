@@ -19,6 +19,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections import deque
 from collections.abc import Callable
 
 import numpy as np
@@ -64,8 +65,8 @@ class SteadyRefit:
         self.inner, self._refit, self.names = inner, refit, tuple(sensor_names)
         self.noise_std = noise_std
         self.every_s, self.max_interval_s, self.max_samples = float(every_s), float(max_interval_s), int(max_samples)
-        self._t: list[float] = []
-        self._y: list[np.ndarray] = []
+        self._t: deque[float] = deque(maxlen=int(max_samples))
+        self._y: deque[np.ndarray] = deque(maxlen=int(max_samples))
         self._looked_at = 0  # record length at the last look
         self.result: IdentificationResult | None = None  # the last refit of a steady record
         self.refits: list[dict] = []
@@ -91,12 +92,12 @@ class SteadyRefit:
     def push(self, t: float, y) -> Estimate:
         """Add one sample; the filter's estimate, or the last refit's steady lift once the record is steady."""
         e = self.inner.push(t, y)
+        if self.transient:  # the filter's record: nothing kept
+            return e
+        if len(self._t) == self._t.maxlen:  # the oldest sample leaves the kept record
+            self._looked_at = max(self._looked_at - 1, 0)
         self._t.append(float(e.t))
         self._y.append(np.asarray(y, dtype=float).copy())
-        if len(self._t) > self.max_samples:
-            drop = len(self._t) - self.max_samples
-            del self._t[:drop], self._y[:drop]
-            self._looked_at = max(self._looked_at - drop, 0)
         if self._due():
             self._look()
         if self.result is None:
@@ -140,6 +141,8 @@ class SteadyRefit:
             if self.result is not None:
                 log.warning("the stream is no longer steady at t = %.6g s: back to the live filter", self._t[-1])
             self.result, self.transient = None, True
+            self._t.clear()
+            self._y.clear()
             return
         c0 = time.thread_time()
         self.result = self._refit(self._record())
