@@ -1,5 +1,5 @@
 import sys
 
-from wingopt.cli import main
+from wingopt._console import main
 
 sys.exit(main())
