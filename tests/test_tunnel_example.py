@@ -67,8 +67,8 @@ def _cli(*args, stdin=None):
 
 
 def test_one_answer_on_every_path(routes, tmp_path):
-    """CLI batch, CLI stream from stdin, the API and the example: the same lift to 1e-9 (the stream's
-    final answer is the whole-record estimate of its samples)."""
+    """CLI batch, CLI stream from stdin, the API, the estimator protocol's stream and the example: the
+    same lift to 1e-9 (a stream's final answer is the whole-record estimate of its samples)."""
     import wingopt as wo
 
     rows, _, _ = routes
@@ -83,5 +83,13 @@ def test_one_answer_on_every_path(routes, tmp_path):
     stream = json.loads((tmp_path / "s" / "summary.json").read_text())
     assert stream["record"] == "steady" and stream["refits"][-1]["final"]
     assert stream["live_filter"]["lift_N"] < 0.8 * example  # the per-sample filter alone cannot tell p from T
-    for lift in (api, batch, stream["lift_N"]):
+    from wingopt.estimation.registry import resolve
+    from wingopt.estimation.runners import build
+    from wingopt.measurements import read_measurements
+    from wingopt.membrane import MembraneModel
+
+    problem = wo.load_problem("membrane")
+    record, _ = read_measurements(RECORD, problem.sensor_names)
+    protocol = build(resolve(stream=True), MembraneModel.from_problem(problem)).run(record).reported_lift[0]
+    for lift in (api, batch, stream["lift_N"], protocol):
         assert lift == pytest.approx(example, rel=1e-9)

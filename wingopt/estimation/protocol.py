@@ -99,6 +99,11 @@ class StreamEstimator:
         info = dict(self.stream.info())
         info["phases"] = sorted({e.phase for e in h})
         info["model_adequate"] = bool(h[-1].adequate)
+        steady = self.stream.finish() if hasattr(self.stream, "finish") else None
+        if steady is not None:  # a steady record: the whole-record estimate is the answer (reported_lift)
+            lift, std = steady.reported_lift
+            info.update(record="steady", steady_lift_N=lift, steady_lift_std_N=std, steady=steady.info)
+            info["model_adequate"] = bool(steady.info.get("model_adequate", True))
         return IdentificationResult(
             method=self.method,
             t=np.array([e.t for e in h]),
