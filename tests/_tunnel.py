@@ -8,7 +8,6 @@ output) and a few dropped frames.
 
 from __future__ import annotations
 
-import dataclasses
 from functools import cache
 
 import numpy as np
@@ -48,12 +47,6 @@ def steady_record(load: str, prestrain: tuple[float, float], seed: int = 0, nois
     y = outputs[None, :] + noise * np.abs(outputs).max() * rng.standard_normal((FRAMES, outputs.size))
     y[rng.choice(FRAMES, FRAMES // 100, replace=False)] = np.nan
     return Measurements(np.arange(FRAMES) / RATE, y, load_problem("membrane").sensor_names)
-
-
-def with_prior(problem, **fields):
-    """``problem`` with ``[identification]`` fields replaced (e.g. what ``wingopt calibrate`` writes:
-    ``prestrain``, ``prestrain_std``, ``prestrain_correlation``; ``leading_edge``, ``pressure_prior``)."""
-    return dataclasses.replace(problem, identification=dataclasses.replace(problem.identification, **fields))
 
 
 def uniform_load(problem, mean: float = 180.0):

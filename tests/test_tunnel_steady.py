@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from _tunnel import static_truth, steady_record, with_prior
+from _tunnel import static_truth, steady_record
 
 from wingopt.estimation.realistic.steady_estimator import is_steady, steady_identify
 from wingopt.membrane import MembraneModel
@@ -24,7 +24,7 @@ def problem():
 
 def _identify(problem, load, truth, **prior):
     meas = steady_record(load, truth)
-    res = steady_identify(MembraneModel.from_problem(with_prior(problem, **prior)), meas)
+    res = steady_identify(MembraneModel.from_problem(problem.with_identification(**prior)), meas)
     _, true_lift = static_truth(load, truth)
     return res, true_lift
 
