@@ -31,6 +31,7 @@ examples:
   wingopt identify membrane --load L3 --noise 5 --seed 2 --load-space free --out runs/L3free
   wingopt identify membrane --load L2 --noise 1 --seed 0 --method jekf-seed --out runs/L2jekf
   wingopt identify membrane --data wind_tunnel.csv --out runs/tunnel --json   # FvK membrane, tension identified
+  wingopt identify cal.toml --data examples/data/tunnel_300Hz.csv --out runs/tunnel   # after wingopt calibrate
   wingopt identify membrane --data wind_tunnel.csv --model linear --out runs/lin   # the seed's linear MHE
   wingopt identify membrane --follow daq.csv --print-every 100 --idle-timeout 5 --out runs/live
   daq_reader | wingopt identify membrane --data - --out runs/live
@@ -40,6 +41,8 @@ examples:
   wingopt identify membrane --data gusty.csv --load-model random_walk --load-timescale 0.5 --out runs/gust
   wingopt identify membrane --data daq.csv --time-column time_s --columns S1=ch1,S2=ch2,S3=ch3,S4=ch4 \\
       --gain 1e-5 --offset 250 --out runs/daq   # stretch = gain * (raw - offset)
+  (a record that starts loaded, without a release transient, takes the steady route: the sensors' mean and the
+  flow's buffeting; [identification] pressure_prior and leading_edge declare the flow, docs/tunnel.md)
   (CSV: header 't,S1,S2,S3,S4', time in s, dimensionless stretch; empty cells = missing samples; a DAQ's own
   columns and units: --columns, --gain, --offset (stretch = gain * (raw - offset)) or the problem's [measurements])"""
 
