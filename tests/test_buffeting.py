@@ -99,7 +99,7 @@ def test_buffeting_problem_derivatives_match_finite_differences(model):
     bp = BuffetingProblem(sp_, spectral_data(meas.t, meas.values, fmin=60.0))
     th = start(bp, fit.theta)
     th[bp.steady.dim :] += 0.1 * np.random.default_rng(0).standard_normal(bp.dim - bp.steady.dim)
-    ev = bp.evaluate(th)
+    ev = bp.evaluate(th, derivatives=True)
     for j in range(bp.dim):
         e = np.zeros(bp.dim)
         e[j] = 1e-6

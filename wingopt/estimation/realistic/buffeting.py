@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
+import scipy.linalg as sla
 
 from wingopt.errors import InputError, SolverError
 from wingopt.estimation.realistic.spectra import SpectralData
@@ -52,6 +53,20 @@ NUISANCE = {"log_A": 5.0, "log_fc": float(np.log(10.0)), "order": 0.5, "log_sigm
 
 FC_REF, ORDER_REF = 30.0, 2.0
 """Prior medians of the forcing spectrum's corner (Hz) and order."""
+
+
+def _times(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a @ b`` for real ``a`` ``(n, k)`` and complex ``b`` ``(k, ...)``: one real product over ``a``'s
+    nonzero rows (``b``'s real and imaginary parts interleaved, no complex copy of ``a``), zero elsewhere."""
+    b = np.ascontiguousarray(b)
+    rows = np.flatnonzero(np.any(a != 0, axis=1))
+    if rows.size == a.shape[0]:
+        return (a @ b.reshape(b.shape[0], -1).view(np.float64)).view(complex).reshape((a.shape[0],) + b.shape[1:])
+    out = np.zeros((a.shape[0],) + b.shape[1:], dtype=complex)
+    if rows.size:
+        prod = a[rows] @ b.reshape(b.shape[0], -1).view(np.float64)
+        out[rows] = prod.view(complex).reshape((rows.size,) + b.shape[1:])
+    return out
 
 
 @dataclass(eq=False)
@@ -129,19 +144,36 @@ class BuffetingProblem:
         return 2 * np.pi * (self.spectra.freq[:, None] + ks[None, :] / self.spectra.dt)
 
     # -- the structure ----------------------------------------------------------------------
-    def structure(self, theta: np.ndarray) -> dict:
-        """Static state, static outputs and the loaded modal matrices at ``theta``, with their
-        derivatives along the ``n_struct`` structural unknowns."""
+    def structure(self, theta: np.ndarray, derivatives: bool = True) -> dict:
+        """Static state, static outputs and the loaded modal matrices at ``theta``, with (``derivatives``)
+        their derivatives along the ``n_struct`` structural unknowns."""
         sp_, fm = self.steady, self.steady.modal
         K, ne, P = sp_.shapes.count, len(sp_.pars), self.n_struct
         q, par = sp_.modal_state(theta[: sp_.dim])
         mat = sp_.model.problem.material
-        C, nu = fm.stiffness_c, mat.poisson_ratio
         ex, ey = par.eps0_x, par.eps0_y
         k0 = fm.omega(ex, ey) ** 2
         d = self.damping(theta)
         tx0, ty0 = fm.tensions(ex, ey)
         cb = mat.viscous / mat.areal_density + mat.kelvin_voigt * (tx0 * fm.kx + ty0 * fm.ky)
+        r = fm.cubic_modes
+        a = q[:r]
+        # the cubic tensor is symmetric in all four indices: contracted once with a, it gives the secant
+        # S(a) = a Ta and its derivative dS = 2 da Ta
+        Ta = (a @ fm.tensor.reshape(r, -1)).reshape(r, r * r)
+        Cq = fm.sensor_products(q[None])[0]  # (p, m)
+        out = {
+            "q": q,
+            "s": np.einsum("pm,m->p", Cq, q) + sp_.defect,
+            "J": 2.0 * Cq + self.jacobian_defect,
+            "Kc": np.diag(k0[:r]) + 3.0 * (a @ Ta).reshape(r, r),
+            "k0": k0,
+            "c": d * cb,
+            "u": sp_.forces @ theta[:K],
+        }
+        if not derivatives:
+            return out
+        C, nu = fm.stiffness_c, mat.poisson_ratio
         du = np.zeros((P, fm.m))
         dk0 = np.zeros((P, fm.m))
         dc = np.zeros((P, fm.m))
@@ -154,29 +186,17 @@ class BuffetingProblem:
         dc[K + ne] = sp_.prior.mean_std("damping")[1] * d * cb
         # static sensitivities: F_q dq = du - dk0 q (implicit differentiation of the equilibrium)
         dq = fm.solve_tangent(q, par, (du - dk0 * q).T).T  # (P, m)
-        Cq = fm.sensor_products(q[None])[0]  # (p, m)
-        r = fm.cubic_modes
-        a, da = q[:r], dq[:, :r]
-        Sq = ((a[:, None] * a[None, :]).ravel() @ fm.tensor).reshape(r, r)
-        sym = a[None, :, None] * da[:, None, :]
-        dS = ((sym + np.swapaxes(sym, 1, 2)).reshape(P, r * r) @ fm.tensor).reshape(P, r, r)
-        dK = 3.0 * dS
+        dK = (6.0 * dq[:, :r] @ Ta).reshape(P, r, r)
         dK[:, np.arange(r), np.arange(r)] += dk0[:, :r]
-        return {
-            "q": q,
-            "s": np.einsum("pm,m->p", Cq, q) + sp_.defect,
-            "ds": 2.0 * Cq @ dq.T,  # (p, P)
-            "J": 2.0 * Cq + self.jacobian_defect,
-            "dJ": 2.0 * (fm.sensor_matrices.reshape(-1, fm.m) @ dq.T).reshape(-1, fm.m, P).transpose(2, 0, 1),
-            "Kc": np.diag(k0[:r]) + 3.0 * Sq,
-            "dK": dK,
-            "k0": k0,
-            "dk0": dk0,
-            "c": d * cb,
-            "dc": dc,
-            "u": sp_.forces @ theta[:K],
-            "du": du,
-        }
+        out.update(
+            ds=2.0 * Cq @ dq.T,  # (p, P)
+            dJ=2.0 * (fm.sensor_matrices.reshape(-1, fm.m) @ dq.T).reshape(-1, fm.m, P).transpose(2, 0, 1),
+            dK=dK,
+            dk0=dk0,
+            dc=dc,
+            du=du,
+        )
+        return out
 
     def transfer(self, st: dict, w: np.ndarray, derivatives: bool = True):
         """Transfer ``h`` ``(F, p)`` from the load factor to the sensors at angular frequencies ``w``
@@ -188,47 +208,55 @@ class BuffetingProblem:
         A[:r, r:] = np.eye(r)
         A[r:, :r] = -Kc
         A[r:, r:] = -np.diag(cc)
-        mu, V = np.linalg.eig(A)
+        mu, V = sla.eig(A, check_finite=False)
         Wv = np.linalg.inv(V)[:, r:]
         Vq = V[:r]
         rho = 1.0 / (1j * w[:, None] - mu[None, :])  # (F, 2r)
         x = (rho * (Wv @ u[:r])) @ Vq.T  # G u (F, r)
-        # linear modes beyond the block: uncoupled oscillators
-        g = 1.0 / (st["k0"][None, r:] - w[:, None] ** 2 + 1j * w[:, None] * st["c"][None, r:])  # (F, m - r)
-        xl = g * u[None, r:]
-        h = x @ J[:, :r].T + xl @ J[:, r:].T
+        # linear modes beyond the block: uncoupled oscillators, frequency last (the products below are
+        # real (rows, m - r) by complex (m - r, F): memory, not arithmetic, sets their cost)
+        re, im = st["k0"][r:, None] - w[None, :] ** 2, w[None, :] * st["c"][r:, None]
+        mag = re**2 + im**2
+        gt = (re / mag) - 1j * (im / mag)  # (m - r, F)
+        xlt = gt * u[r:, None]
+        h = x @ J[:, :r].T + _times(J[:, r:], xlt).T
         if not derivatives:
             return h, None
-        # dh = dJ x + lambda^T (du - dK x - i w dC x), lambda = G J^T (G symmetric); all products as GEMMs
-        P = st["du"].shape[0]
-        lam = Vq @ (rho[:, :, None] * (Wv @ J[:, :r].T)[None])  # (F, r, p)
-        du, dK, dc, dJ = st["du"], st["dK"], st["dc"], st["dJ"]
-        z = du[:, None, :r] - x[None] @ dK - 1j * w[None, :, None] * dc[:, None, :r] * x[None]  # dK symmetric
-        dh = (z.transpose(1, 0, 2) @ lam).transpose(1, 0, 2) + x[None] @ dJ[:, :, :r].transpose(0, 2, 1)
-        Jl, m1 = J[:, r:], J.shape[1] - r
+        # dh = dJ x + lambda^T (du - dK x - i w dC x), lambda = G J^T (G symmetric)
+        du, dK, dc, dJ, dk0 = st["du"], st["dK"], st["dc"], st["dJ"], st["dk0"]
+        P, p, F = du.shape[0], J.shape[0], w.size
+        lam = (Vq @ (rho.T[:, :, None] * (Wv @ J[:, :r].T)[:, None, :]).reshape(2 * r, -1)).reshape(r, F, p)
+        xt = np.ascontiguousarray(x.T)  # (r, F)
+        dh = _times(du[:, :r], lam) - (1j * w)[None, :, None] * _times(dc[:, :r], xt[:, :, None] * lam)
+        Y = _times(np.ascontiguousarray(dK.transpose(0, 2, 1)).reshape(P * r, r), xt).reshape(P, r, F)  # dK x
+        dh -= (Y.transpose(2, 0, 1) @ lam.transpose(1, 0, 2)).transpose(1, 0, 2)
+        Jl = J[:, r:]
 
-        def outer(a):  # (P, m - r) x (p, m - r) -> (m - r, P p)
-            return (a.T[:, :, None] * Jl.T[:, None, :]).reshape(m1, -1)
+        def rows(a):  # (P p, m - r): a[P, j] J[k, j]
+            return (a[:, None, :] * Jl[None]).reshape(P * p, -1)
 
-        gx = g * xl
-        rest = g @ outer(du[:, r:]) - gx @ outer(st["dk0"][:, r:]) - (1j * w[:, None] * gx) @ outer(dc[:, r:])
-        rest += xl @ dJ[:, :, r:].transpose(2, 0, 1).reshape(m1, -1)
-        dh += rest.reshape(w.size, P, -1).transpose(1, 0, 2)
+        gxt = gt * xlt
+        rest = _times(rows(du[:, r:]), gt) - _times(rows(dk0[:, r:]), gxt)
+        rest -= (1j * w)[None, :] * _times(rows(dc[:, r:]), gxt)
+        rest += _times(dJ.reshape(P * p, -1), np.concatenate([xt, xlt]))  # dJ x, both blocks
+        dh += rest.reshape(P, p, F).transpose(0, 2, 1)
         return h, dh
 
     # -- the spectrum -----------------------------------------------------------------------
-    def evaluate(self, theta: np.ndarray) -> dict:
-        """Static outputs, model spectra ``S`` ``(B, p, p)`` and their derivatives ``dS`` ``(dim, B, p, p)``
-        (cached: the driver asks for the same point again after refreezing the weights)."""
+    def evaluate(self, theta: np.ndarray, derivatives: bool = False) -> dict:
+        """Static outputs and model spectra ``S`` ``(B, p, p)`` at ``theta``; with ``derivatives`` also
+        ``dS`` ``(dim, B, p, p)`` and ``ds`` (cached: the driver asks for the same point again after
+        refreezing the weights; a trial step that is rejected never pays for its derivatives)."""
         key = theta.tobytes()
-        if key in self._cache:
-            return self._cache[key]
-        st = self.structure(theta)
+        hit = self._cache.get(key)
+        if hit is not None and (not derivatives or "dS" in hit):
+            return hit
+        st = self.structure(theta, derivatives)
         B, p = self.spectra.bins, self.spectra.p
         w = self.omega.ravel()
-        h, dh = self.transfer(st, w)
+        h, dh = self.transfer(st, w, derivatives)
         nk = self.omega.shape[1]
-        h, dh = h.reshape(B, nk, p), dh.reshape(-1, B, nk, p)
+        h = h.reshape(B, nk, p)
         A, fc, n = self.forcing(theta)
         x = (w.reshape(B, nk) / (2 * np.pi * fc)) ** 2
         se = A * (1.0 + x) ** (-n)
@@ -236,18 +264,21 @@ class BuffetingProblem:
         signal = hh.sum(axis=1)
         sig = self.noise(theta)
         S = signal + np.eye(p)[None] * (self.spectra.dt * sig**2)[None, :, None]
-        dS = np.zeros((self.dim, B, p, p), dtype=complex)
-        cross = np.einsum("bk,abkp,bkq->abpq", se, dh, h.conj())
-        dS[: self.n_struct] = cross + np.conj(np.swapaxes(cross, 2, 3))
-        dS[self.i_a] = NUISANCE["log_A"] * signal
-        dS[self.i_fc] = NUISANCE["log_fc"] * np.einsum("bk,bkpq->bpq", 2 * n * x / (1 + x), hh)
-        dS[self.i_n] = -NUISANCE["order"] * n * np.einsum("bk,bkpq->bpq", np.log1p(x), hh)
-        for i, j in enumerate(self.i_sig):
-            dS[j, :, i, i] = 2 * NUISANCE["log_sigma"] * self.spectra.dt * sig[i] ** 2
-        ds = np.zeros((p, self.dim))
-        ds[:, : self.n_struct] = st["ds"]
-        out = {"S": S, "dS": dS, "s": st["s"], "ds": ds, "structure": st}
-        if len(self._cache) >= 4:
+        out = {"S": S, "s": st["s"], "structure": st}
+        if derivatives:
+            dh = dh.reshape(-1, B, nk, p)
+            dS = np.zeros((self.dim, B, p, p), dtype=complex)
+            cross = np.einsum("bk,abkp,bkq->abpq", se, dh, h.conj())
+            dS[: self.n_struct] = cross + np.conj(np.swapaxes(cross, 2, 3))
+            dS[self.i_a] = NUISANCE["log_A"] * signal
+            dS[self.i_fc] = NUISANCE["log_fc"] * np.einsum("bk,bkpq->bpq", 2 * n * x / (1 + x), hh)
+            dS[self.i_n] = -NUISANCE["order"] * n * np.einsum("bk,bkpq->bpq", np.log1p(x), hh)
+            for i, j in enumerate(self.i_sig):
+                dS[j, :, i, i] = 2 * NUISANCE["log_sigma"] * self.spectra.dt * sig[i] ** 2
+            ds = np.zeros((p, self.dim))
+            ds[:, : self.n_struct] = st["ds"]
+            out.update(dS=dS, ds=ds)
+        if hit is None and len(self._cache) >= 4:
             self._cache.pop(next(iter(self._cache)))
         self._cache[key] = out
         return out
@@ -286,7 +317,7 @@ class BuffetingProblem:
         if self._weights is None:
             raise SolverError("buffeting fit", "weights not frozen", "call freeze(theta) first")
         try:
-            ev = self.evaluate(theta)
+            ev = self.evaluate(theta, jacobian)
         except (InputError, ArithmeticError, SolverError, np.linalg.LinAlgError) as exc:
             log.debug("buffeting trial rejected: %s", exc)
             rd = np.full(self.spectra.p + self.spectra.bins * self.spectra.p**2, np.inf)

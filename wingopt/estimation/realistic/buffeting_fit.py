@@ -33,9 +33,10 @@ from wingopt.estimation.realistic.solver import Fit, levenberg_marquardt
 __all__ = [
     "BuffetingFit",
     "fit_buffeting",
+    "objective",
+    "result",
     "start",
     "run",
-    "resume",
     "full_order_frequencies",
     "modal_frequencies",
     "tension_ratio",
@@ -65,7 +66,9 @@ class BuffetingFit:
     (up to the data's normalisation); ``objective``: Whittle's negative log-likelihood plus half the
     static chi-square and half the prior's; ``static_chi2``: the mean's chi-square per sensor;
     ``spectral_chi2``: the frozen-weight Whittle residuals' mean square (1 when the model spectrum is
-    right: ``E |W (Ī - S) W^H|_F^2 = p^2 / n_b``); ``problem``: the fitted problem (its full-order defects).
+    right: ``E |W (Ī - S) W^H|_F^2 = p^2 / n_b``); ``problem``: the fitted problem (its full-order defects);
+    ``abandoned``: stopped short of its optimum because even that would lie far below a better fit's
+    (:func:`fit_buffeting`'s ``abandon``).
     """
 
     theta: np.ndarray
@@ -90,6 +93,7 @@ class BuffetingFit:
     converged: bool
     fit: Fit
     problem: BuffetingProblem
+    abandoned: bool = False
 
 
 def objective(bp: BuffetingProblem, theta: np.ndarray) -> float:
@@ -106,7 +110,7 @@ def start(bp: BuffetingProblem, theta_static: np.ndarray) -> np.ndarray:
     th = np.zeros(bp.dim)
     th[: bp.steady.dim] = theta_static
     bp.log_a_ref = 0.0
-    st = bp.structure(th)
+    st = bp.structure(th, derivatives=False)
     spec = bp.spectra
     low = spec.freq <= 0.5 * FC_REF
     if low.sum() < 3:
@@ -125,9 +129,17 @@ def start(bp: BuffetingProblem, theta_static: np.ndarray) -> np.ndarray:
 
 
 def fit_buffeting(
-    bp: BuffetingProblem, theta0: np.ndarray, max_iter: int = 40, corrections: int = 1, tol: float = 1e-2
-) -> tuple[np.ndarray, Fit, int, bool]:
-    """Fisher scoring from ``theta0`` (module docstring); returns ``(theta, fit, iterations, converged)``."""
+    bp: BuffetingProblem,
+    theta0: np.ndarray,
+    max_iter: int = 40,
+    corrections: int = 1,
+    tol: float = 1e-2,
+    abandon: float | None = None,
+) -> tuple[np.ndarray, Fit, int, bool, bool]:
+    """Fisher scoring from ``theta0`` (module docstring); returns ``(theta, fit, iterations, converged,
+    abandoned)``. With ``abandon`` (an objective level) scoring stops as soon as the local model's
+    minimum, the objective less half the Newton decrement, lies above it: that fit cannot matter
+    beside one that reached the level."""
     theta = np.asarray(theta0, dtype=float)
     its, converged, fit = 0, False, None
     for k in range(corrections + 1):
@@ -140,6 +152,7 @@ def fit_buffeting(
                 converged = fit.converged
                 break
             its += 1
+            hopeless = abandon is not None and phi - 0.5 * fit.decrement > abandon
             step = fit.theta - theta
             for _half in range(8):  # the frozen cost fell; the true objective must too
                 try:
@@ -153,12 +166,16 @@ def fit_buffeting(
                 log.debug("buffeting fit: no step lowers the objective; stopped at %.6g", phi)
                 break
             theta, phi = theta + step, phi_new
-            log.debug("buffeting fit %d: objective %.6g", its, phi)
+            log.debug("buffeting fit %d: objective %.6g (decrement %.3g)", its, phi, fit.decrement)
+            if hopeless:
+                log.debug("buffeting fit abandoned: its local minimum lies above %.6g", abandon)
+                bp.freeze(theta)
+                return theta, levenberg_marquardt(bp, theta, max_iter=0, tol=tol), its, False, True
         if k < corrections:
             correct(bp, theta)
     bp.freeze(theta)
     fit = levenberg_marquardt(bp, theta, max_iter=0, tol=tol)  # precision and Jacobian at theta
-    return theta, fit, its, converged
+    return theta, fit, its, converged, False
 
 
 def correct(bp: BuffetingProblem, theta: np.ndarray) -> None:
@@ -196,7 +213,7 @@ def full_order_frequencies(bp: BuffetingProblem, theta: np.ndarray, count: int =
 
 def modal_frequencies(bp: BuffetingProblem, theta: np.ndarray, count: int = 3) -> np.ndarray:
     """Lowest ``count`` loaded frequencies (Hz) of the modal tangent at ``theta``."""
-    st = bp.structure(np.asarray(theta, dtype=float))
+    st = bp.structure(np.asarray(theta, dtype=float), derivatives=False)
     r = bp.steady.modal.cubic_modes
     lam = np.sort(np.concatenate([np.linalg.eigvalsh(st["Kc"]), st["k0"][r:]]))[:count]
     return np.sqrt(np.maximum(lam, 0.0)) / (2 * np.pi)
@@ -233,7 +250,9 @@ def mean_prestrain(sp_, theta: np.ndarray, cov: np.ndarray) -> tuple[float, floa
     return 0.5 * (par.eps0_x + par.eps0_y), float(np.sqrt(g @ cov @ g))
 
 
-def result(bp: BuffetingProblem, theta: np.ndarray, fit: Fit, iterations: int, converged: bool) -> BuffetingFit:
+def result(
+    bp: BuffetingProblem, theta: np.ndarray, fit: Fit, iterations: int, converged: bool, abandoned: bool = False
+) -> BuffetingFit:
     """The posterior of a fit (Laplace: ``fit.covariance``)."""
     sp_ = bp.steady
     cov = fit.covariance
@@ -269,22 +288,23 @@ def result(bp: BuffetingProblem, theta: np.ndarray, fit: Fit, iterations: int, c
         converged=converged,
         fit=fit,
         problem=bp,
+        abandoned=abandoned,
     )
 
 
 def run(
-    bp: BuffetingProblem, theta_static: np.ndarray, max_iter: int = 40, corrections: int = 1, tol: float = TOL
+    bp: BuffetingProblem,
+    theta_static: np.ndarray,
+    max_iter: int = 40,
+    corrections: int = 1,
+    tol: float = TOL,
+    abandon: float | None = None,
 ) -> BuffetingFit:
-    """Start, fit and posterior of ``bp`` from a static fit's unknowns."""
+    """Start, fit and posterior of ``bp`` from a static fit's unknowns (``abandon``: as
+    :func:`fit_buffeting`'s)."""
     t0 = time.process_time()
     th = start(bp, theta_static)
-    theta, fit, its, ok = fit_buffeting(bp, th, max_iter, corrections, tol)
-    out = result(bp, theta, fit, its, ok)
+    theta, fit, its, ok, gave_up = fit_buffeting(bp, th, max_iter, corrections, tol, abandon)
+    out = result(bp, theta, fit, its, ok, gave_up)
     log.debug("buffeting fit: %d iterations, %.2f s CPU", its, time.process_time() - t0)
     return out
-
-
-def resume(bf: BuffetingFit, max_iter: int = 40, tol: float = TOL) -> BuffetingFit:
-    """``bf`` scored on to convergence (its full-order defects kept)."""
-    theta, fit, its, ok = fit_buffeting(bf.problem, bf.theta, max_iter, 0, tol)
-    return result(bf.problem, theta, fit, bf.iterations + its, ok)

@@ -34,6 +34,9 @@ class Fit:
     iterations: int
     converged: bool
     out_of_budget: bool = False
+    decrement: float = float("nan")
+    """The Newton decrement ``g^T H^-1 g`` at ``theta0`` (chi-square units: the undamped Gauss–Newton
+    step's predicted decrease from the start)."""
 
     @property
     def cost(self) -> float:
@@ -95,6 +98,7 @@ def levenberg_marquardt(
     converged = False
     it = 0
     jacobian_first = True
+    first_decrement = None
     while True:
         H = Jd.T @ Jd + Rp.T @ Rp
         g = Jd.T @ rd + Rp.T @ rp
@@ -102,6 +106,7 @@ def levenberg_marquardt(
             decrement = float(g @ np.linalg.solve(H, g))
         except np.linalg.LinAlgError:
             decrement = np.inf
+        first_decrement = decrement if first_decrement is None else first_decrement
         if decrement < tol:
             converged = True
             break
@@ -156,4 +161,4 @@ def levenberg_marquardt(
     log.debug("LM: %d iterations, cost %.4g, converged %s", it, f, converged)
     H = Jd.T @ Jd + Rp.T @ Rp
     out = not converged and it < max_iter and budget is not None and budget.exhausted
-    return Fit(theta, float(rd @ rd), float(rp @ rp), H, Jd, rd, it, converged, out)
+    return Fit(theta, float(rd @ rd), float(rp @ rp), H, Jd, rd, it, converged, out, first_decrement)

@@ -154,7 +154,7 @@ class SteadyProblem:
         c, par = self.physical(theta)
         fvk = self.fvk.with_params(par)
         z0 = self.modal.deflection(self.modal_state(theta)[0]) if self._z is None else self._z
-        sol = fvk.static(self.shapes.forces @ c, z0=z0)
+        sol = fvk.static(self.shapes.forces @ c, z0=z0, reuse_tangent=True)
         self._z = sol.z
         return fvk, sol
 

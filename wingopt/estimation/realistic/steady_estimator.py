@@ -29,15 +29,13 @@ from wingopt.estimation.realistic.spectra import spectral_data
 from wingopt.estimation.realistic.steady import SteadyProblem, steady_data
 from wingopt.estimation.realistic.steady_solutions import (
     ADEQUATE,
-    FIRST_ITER,
     KEEP,
     Solution,
+    buffeted_all,
     corrected,
     mixture,
     resonance,
-    resumed,
     static_solutions,
-    try_buffeted,
     weights,
 )
 from wingopt.estimation.result import IdentificationResult
@@ -68,8 +66,9 @@ def is_steady(values: np.ndarray, head: float = 0.1, tolerance: float = 0.1, rin
     return bool(np.all(np.abs(first - last) <= tolerance * scale) and np.all(stationary))
 
 
-def _fluctuation(model: MembraneModel, sp_: SteadyProblem, theta, meas: Measurements, data) -> np.ndarray:
-    """The relative load fluctuation ``eps(t)`` read off the sensors linearised about the static state."""
+def _fluctuation(model: MembraneModel, sp_: SteadyProblem, theta, meas: Measurements, data):
+    """The relative load fluctuation ``eps(t)`` read off the sensors linearised about the static state,
+    and that state."""
     fvk, sol = sp_.equilibrium(theta)
     c, _ = sp_.physical(theta)
     K = fvk.tangent(sol.z, sol.u, sol.v).tocsc()
@@ -84,7 +83,7 @@ def _fluctuation(model: MembraneModel, sp_: SteadyProblem, theta, meas: Measurem
     ok = np.isfinite(rel)
     num = np.where(ok, rel * (w / alpha)[None, :], 0.0).sum(axis=1)
     den = np.where(ok, w[None, :], 0.0).sum(axis=1)
-    return np.where(den > 0, num / np.maximum(den, 1e-300), np.nan)
+    return np.where(den > 0, num / np.maximum(den, 1e-300), np.nan), sol
 
 
 def steady_identify(
@@ -115,10 +114,9 @@ def steady_identify(
     best = sols[int(np.argmax(w))]
     sp_, theta = best.problem, best.theta
     warnings = notes + _warnings(best, sols, w, scr, problem)
-    eps = _fluctuation(model, sp_, theta, meas, data)
+    eps, state = _fluctuation(model, sp_, theta, meas, data)
     c, _ = sp_.physical(theta)
     amp = 1.0 + np.nan_to_num(eps, nan=0.0)
-    _, state = sp_.equilibrium(theta)
     info = _info(best, sols, w, data, scr, f11, warnings)
     info["steady_lift_N"], info["steady_lift_std_N"] = mean, std
     return IdentificationResult(
@@ -145,12 +143,9 @@ def _solve(model, priors, data, spectra, prior, p0, s, notes):
     kept = [x for x, wi in zip(sols, w) if wi >= KEEP]
     scr, f11 = resonance(sols[int(np.argmax(w))], spectra) if spectra is not None else (None, float("nan"))
     if scr is not None and scr.informative:
-        refits = [try_buffeted(x, spectra, 1, min(FIRST_ITER, s.max_iter)) for x in kept]
+        refits = buffeted_all(kept, spectra, s.max_iter)
         spectral = [x for x, why in refits if why is None]
         notes.extend(why for _, why in refits if why is not None)
-        if spectral:  # evidences compare within one likelihood: the spectral fits only
-            top = int(np.argmax([x.log_evidence for x in spectral]))
-            spectral[top] = resumed(spectral[top], s.max_iter)
         sols = spectral or [x for x, _ in refits]
     else:
         sols = [corrected(x, s.max_iter) for x in kept]

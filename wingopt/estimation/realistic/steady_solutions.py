@@ -18,7 +18,16 @@ import numpy as np
 
 from wingopt.errors import InputError, SolverError
 from wingopt.estimation.realistic.buffeting import BuffetingProblem
-from wingopt.estimation.realistic.buffeting_fit import BuffetingFit, modal_frequencies, resume, run, tension_ratio
+from wingopt.estimation.realistic.buffeting_fit import (
+    TOL,
+    BuffetingFit,
+    fit_buffeting,
+    modal_frequencies,
+    objective,
+    result,
+    start,
+    tension_ratio,
+)
 from wingopt.estimation.realistic.load_model import LoadShapes
 from wingopt.estimation.realistic.record_problem import ParameterPrior
 from wingopt.estimation.realistic.solver import Fit
@@ -30,8 +39,7 @@ __all__ = [
     "Solution",
     "static_solutions",
     "resonance",
-    "buffeted",
-    "resumed",
+    "buffeted_all",
     "corrected",
     "weights",
     "mixture",
@@ -43,9 +51,15 @@ BAND = (0.75, 1.25)
 """The screen's band, relative to the static fit's loaded first frequency (a prestrain two prior std
 off moves it by ~12 % at fixed sensor means)."""
 
-FIRST_ITER = 10
-"""Scoring steps every solution gets; then only the most probable is scored on to convergence (the
-frame prior's other lobe pattern is 20-30 nats below after them, and took 5 s more to converge)."""
+LOOK = 3
+"""Scoring steps every solution gets before they are ranked by objective."""
+
+ABANDON = 20.0
+"""Nats of objective by which a solution's buffeting fit may trail the best one's before it is
+abandoned: when even its local model's minimum lies this far above the best fit's objective, its
+evidence weight is below ~e^-20 and it cannot move the mixture (the frame prior's other lobe pattern
+ends 19 nats of evidence below on the tunnel stand-in, after 20 scoring steps that took 60 % of the
+record's CPU)."""
 
 KEEP = 0.05
 """Solutions below this evidence weight are not refitted (with the spectrum or the full order)."""
@@ -53,6 +67,8 @@ KEEP = 0.05
 ADEQUATE = (4.0, 1.5)
 """Largest static chi-square per sensor and spectral residual mean square of an adequate fit (the load
 prior cannot make the mean; the spectrum model is not the record's)."""
+
+_FAILURES = (InputError, SolverError, ArithmeticError, np.linalg.LinAlgError)
 
 SAME = 1e-3
 """Two fits whose lifts and costs agree to this (relative) are one solution, counted once."""
@@ -148,18 +164,6 @@ def resonance(sol: Solution, spectra: SpectralData, aliases: int = 1) -> tuple[S
     return screen(spectra, (BAND[0] * f11, min(BAND[1] * f11, spectra.nyquist))), f11
 
 
-def buffeted(sol: Solution, spectra: SpectralData, aliases: int = 1, max_iter: int = 40) -> Solution:
-    """``sol`` refitted with the mean and the spectrum together (``max_iter`` scoring steps)."""
-    return _from_fit(sol, run(BuffetingProblem(sol.problem, spectra, aliases), sol.theta, max_iter))
-
-
-def resumed(sol: Solution, max_iter: int = 40) -> Solution:
-    """A buffeted ``sol`` scored on to convergence."""
-    if sol.buffeting is None or sol.buffeting.converged:
-        return sol
-    return _from_fit(sol, resume(sol.buffeting, max_iter))
-
-
 def _from_fit(sol: Solution, bf: BuffetingFit) -> Solution:
     return Solution(
         sol.label, sol.problem, bf.fit, bf, bf.lift, bf.lift_std, bf.evidence, bf.static_chi2, bf.spectral_chi2
@@ -188,10 +192,36 @@ def mixture(w: np.ndarray, solutions: list[Solution]) -> tuple[float, float]:
     return mean, float(np.sqrt(max(w @ (stds**2 + lifts**2) - mean**2, 0.0)))
 
 
-def try_buffeted(sol: Solution, spectra: SpectralData, aliases: int, max_iter: int) -> tuple[Solution, str | None]:
-    """:func:`buffeted`, or the full-order static fit and why the spectral fit failed."""
-    try:
-        return buffeted(sol, spectra, aliases, max_iter), None
-    except (InputError, SolverError, ArithmeticError, np.linalg.LinAlgError) as exc:
+def buffeted_all(
+    solutions: list[Solution], spectra: SpectralData, max_iter: int = 40, aliases: int = 1
+) -> list[tuple[Solution, str | None]]:
+    """Every solution refitted with the mean and the spectrum together: :data:`LOOK` scoring steps
+    each, then, best objective first, each scored on to convergence (``max_iter`` steps a phase) or
+    abandoned once it cannot come within :data:`ABANDON` nats of a better one. A spectral fit that
+    fails falls back to the full-order static fit, with the reason (the second element)."""
+    looked = []
+    for sol in solutions:
+        try:
+            bp = BuffetingProblem(sol.problem, spectra, aliases)
+            theta, _, its, _, _ = fit_buffeting(bp, start(bp, sol.theta), min(LOOK, max_iter), 0, TOL)
+            looked.append((bp, theta, its, objective(bp, theta), None))
+        except _FAILURES as exc:
+            looked.append((None, None, 0, np.inf, exc))
+    out: list = [None] * len(solutions)
+    best = None
+    for i in sorted(range(len(solutions)), key=lambda i: looked[i][3]):
+        sol, (bp, theta, its, _, exc) = solutions[i], looked[i]
+        if exc is None:
+            try:
+                level = None if best is None else best + ABANDON
+                theta, fit, more, ok, gave_up = fit_buffeting(bp, theta, max_iter, 1, TOL, level)
+                bf = result(bp, theta, fit, its + more, ok, gave_up)
+                if not gave_up:
+                    best = bf.objective if best is None else min(best, bf.objective)
+                out[i] = (_from_fit(sol, bf), None)
+                continue
+            except _FAILURES as err:
+                exc = err
         log.info("buffeting fit from the %s solution failed: %s", sol.label, exc)
-        return corrected(sol), f"the buffeting fit from the {sol.label} solution failed ({exc})"
+        out[i] = (corrected(sol), f"the buffeting fit from the {sol.label} solution failed ({exc})")
+    return out
