@@ -157,3 +157,25 @@ def test_no_buffeting_leaves_the_tension_to_the_prior(model):
     assert tension["posterior_over_prior"] > 0.9
     assert abs(tension["mean_prestrain"] - PRIOR_E) < 0.1 * PRIOR_E
     assert any("does not identify the tension" in w for w in res.info["warnings"])
+
+
+def test_a_hopeless_lobe_pattern_is_abandoned_without_moving_the_answer(monkeypatch):
+    """The stand-in's first 1.5 s under the default prior: the other lobe pattern's spectral fit is
+    abandoned once its local model cannot come within 20 nats of the best fit; scored on to the end
+    instead, it ends far below (weight < 1e-6) and the lift and band are the same to 1e-4."""
+    from wingopt.estimation.realistic import steady_solutions
+    from wingopt.measurements import read_measurements
+
+    ROOT = Path(__file__).resolve().parents[1]
+    problem = load_problem("membrane")
+    full, _ = read_measurements(ROOT / "examples" / "data" / "tunnel_300Hz.csv", problem.sensor_names)
+    meas = Measurements(full.t[:452], full.values[:452], full.sensor_names, None, "first 1.5 s")
+    model = MembraneModel.from_problem(problem)
+    fast = steady_identify(model, meas)
+    sols = fast.info["solutions"]
+    assert [s["abandoned"] for s in sols] == [False, True] and sols[1]["weight"] < 1e-6
+    monkeypatch.setattr(steady_solutions, "ABANDON", np.inf)
+    slow = steady_identify(model, meas)
+    assert not any(s["abandoned"] for s in slow.info["solutions"])
+    assert max(s["weight"] for s in slow.info["solutions"][1:]) < 1e-6
+    assert np.allclose(fast.reported_lift, slow.reported_lift, rtol=1e-4)

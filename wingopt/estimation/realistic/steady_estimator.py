@@ -231,6 +231,7 @@ def _info(best: Solution, sols, w, data, scr, f11: float, warnings: list[str]) -
                 "log_evidence": x.log_evidence,
                 "weight": float(wi),
                 "buffeting": x.buffeting is not None,
+                "abandoned": x.buffeting is not None and x.buffeting.abandoned,
             }
             for x, wi in zip(sols, w.tolist())
         ],
