@@ -17,6 +17,9 @@ from wingopt.membrane.full.fvk import FvKMembrane
 
 __all__ = ["cubic_tensor"]
 
+PAIRS_PER_BLOCK = 48
+"""Mode pairs whose in-plane problems are solved together (a few MB of fields per block)."""
+
 
 def cubic_tensor(fvk: FvKMembrane, shapes: np.ndarray) -> np.ndarray:
     """Symmetrised ``B[i, (j, k, l)]`` ``(r, r^3)`` with ``shapes^T N(shapes a) = B (a⊗a⊗a)``.
@@ -30,25 +33,26 @@ def cubic_tensor(fvk: FvKMembrane, shapes: np.ndarray) -> np.ndarray:
     gx, gy = np.array([o.gradient(shapes[:, j]) for j in range(r)]).transpose(1, 0, 2)  # (r, nq) each
     lu = fvk._inplane[1]
     n = fvk.n
-    # Quadratic strains of each ordered pair (j, k): w = phi_j + phi_k contributes a_j a_k (...).
-    ex = 0.5 * gx[:, None, :] * gx[None, :, :]
-    ey = 0.5 * gy[:, None, :] * gy[None, :, :]
-    gg = 0.5 * (gx[:, None, :] * gy[None, :, :] + gy[:, None, :] * gx[None, :, :])
-    # All pairs j <= k at once: their in-plane problems share the factorised stiffness.
+    # Quadratic strains of each pair j <= k (w = phi_j + phi_k contributes a_j a_k (...)); twice them
+    # are the products of slopes the force is tested with.
     J, K = np.triu_indices(r)
-    exp, eyp, ggp = ex[J, K], ey[J, K], gg[J, K]
-    nx, ny, nxy = C * (exp + nu * eyp), C * (eyp + nu * exp), G * ggp
-    rhs = np.vstack([o.divergences(W * nx, W * nxy), o.divergences(W * nxy, W * ny)])
-    uv = -lu.solve(rhs)
-    ux, uy = o.gradients(uv[:n])
-    vx, vy = o.gradients(uv[n:])
-    exj, eyj, gj = exp + ux, eyp + vy, ggp + uy + vx
-    # B[j, k, i, l] = ∫ Sx_jk phi_i,x phi_l,x + Sy_jk phi_i,y phi_l,y + Sxy_jk (phi_i,x phi_l,y + phi_i,y phi_l,x),
-    # symmetric in (j, k) and in (i, l): contracted over the pairs only (a quarter of the products).
-    Sp = np.stack([C * (exj + nu * eyj), C * (eyj + nu * exj), G * gj]) * W  # (3, P, nq)
     Gx, Gy = gx[J] * gx[K], gy[J] * gy[K]
     Gxy = gx[J] * gy[K] + gy[J] * gx[K]
-    Bp = Sp[0] @ Gx.T + Sp[1] @ Gy.T + Sp[2] @ Gxy.T  # (P, P): [pair (j, k), pair (i, l)]
+    Bp = np.empty((J.size, J.size))
+    # The pairs' in-plane problems share the factorised stiffness; in blocks of pairs, so that the
+    # strain and stress fields of a block stay small (the whole set is ~30 arrays of pairs x points)
+    for b in range(0, J.size, PAIRS_PER_BLOCK):
+        blk = slice(b, b + PAIRS_PER_BLOCK)
+        exp, eyp, ggp = 0.5 * Gx[blk], 0.5 * Gy[blk], 0.5 * Gxy[blk]
+        nx, ny, nxy = C * (exp + nu * eyp), C * (eyp + nu * exp), G * ggp
+        rhs = np.vstack([o.divergences(W * nx, W * nxy), o.divergences(W * nxy, W * ny)])
+        uv = -lu.solve(rhs)
+        ux, uy = o.gradients(uv[:n])
+        vx, vy = o.gradients(uv[n:])
+        exj, eyj, gj = exp + ux, eyp + vy, ggp + uy + vx
+        # B[j, k, i, l] = ∫ Sx_jk phi_i,x phi_l,x + Sy_jk phi_i,y phi_l,y + Sxy_jk (phi_i,x phi_l,y + phi_i,y
+        # phi_l,x), symmetric in (j, k) and in (i, l): contracted over the pairs only (a quarter of the products)
+        Bp[blk] = (W * C * (exj + nu * eyj)) @ Gx.T + (W * C * (eyj + nu * exj)) @ Gy.T + (W * G * gj) @ Gxy.T
     pair = np.empty((r, r), dtype=int)
     pair[J, K] = pair[K, J] = np.arange(J.size)
     B = Bp[pair[:, :, None, None], pair[None, None, :, :]].transpose(2, 0, 1, 3)  # (i, j, k, l)
