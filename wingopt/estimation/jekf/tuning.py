@@ -41,9 +41,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.stats import chi2
 
 from wingopt.errors import InputError
+from wingopt.estimation.distributions import chi2_ppf
 from wingopt.estimation.jekf.filter import JointEKF
 from wingopt.estimation.jekf.settings import JEKFSettings
 from wingopt.estimation.noise import JEKF_NOISE, noise_variance
@@ -202,7 +202,7 @@ def select_lambda(
     threshold = float("nan")
 
     if rule == "discrepancy":
-        threshold = float(chi2.ppf(level, p))
+        threshold = float(chi2_ppf(level, p))
 
         def accepted(lam: float) -> bool:
             best = min(s["late_chi2"] for s in run.stats.values())

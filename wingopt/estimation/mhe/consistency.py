@@ -26,7 +26,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import chi2 as chi2_dist
+
+from wingopt.estimation.distributions import chi2_isf, chi2_median
 
 __all__ = ["SIGNIFICANCE", "SegmentProfile", "segment_profile", "leading_onset", "first_inconsistent"]
 
@@ -115,10 +116,10 @@ def segment_profile(
     nu = np.maximum(nu, 0.5)
     if level is None:
         good = n > 0
-        level = float(np.median(chi[good] / chi2_dist.median(nu[good]))) if good.any() else 1.0
+        level = float(np.median(chi[good] / chi2_median(nu[good]))) if good.any() else 1.0
     level = max(float(level), floor, 1e-12)
     a = significance / max(starts.size, 1)
-    thr = level * chi2_dist.isf(a, nu)
+    thr = level * chi2_isf(a, nu)
     return SegmentProfile(starts, chi, n, level, thr, K)
 
 

@@ -16,7 +16,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+
+from wingopt.estimation.distributions import chi2_sf
 
 __all__ = ["Adequacy", "assess", "SEGMENT_LEVEL"]
 
@@ -76,7 +77,7 @@ def assess(
         # the fit's unknowns absorb part of the noise evenly: dof share of this segment
         k = rs.size * dof / max(n, 1)
         seg_chi.append(c / max(k, 1.0))
-        if stats.chi2.sf(c, max(k, 1.0)) < SEGMENT_LEVEL / nseg:
+        if chi2_sf(c, max(k, 1.0)) < SEGMENT_LEVEL / nseg:
             bad.append((float(t[rows][0]), float(t[rows][-1])))
     adequate = per <= 1.0 + tolerance and not bad
     # An adequate fit keeps its band; a misfit widens it by the worst misfit it shows (a

@@ -25,7 +25,8 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy import stats
+
+from wingopt.estimation.distributions import chi2_ppf
 
 if TYPE_CHECKING:
     from wingopt.estimation.realistic.record_problem import RecordProblem
@@ -75,7 +76,7 @@ def load_prior_check(
     sl = rp.slices["c"]
     n = sl.stop - sl.start
     chi2 = float(fit.theta[sl] @ fit.theta[sl])
-    threshold = float(stats.chi2.ppf(1.0 - LEVEL, n))
+    threshold = float(chi2_ppf(1.0 - LEVEL, n))
     info = {"conflict": chi2 > threshold, "load_chi2": chi2, "threshold": threshold, "shapes": n}
     if not info["conflict"]:
         return rp, fit, None, info

@@ -28,9 +28,9 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import gamma
 
 from wingopt.errors import InputError
+from wingopt.estimation.distributions import gamma_ppf
 
 __all__ = ["SpectralData", "spectral_data", "Screen", "screen", "MAX_DROPPED"]
 
@@ -207,7 +207,7 @@ def screen(
     if data.bins < 2 * w:
         return Screen(float("nan"), float("nan"), band, float("nan"), False)
     L = int(np.median(data.counts))
-    floor = np.maximum(np.quantile(auto, FLOOR_QUANTILE, axis=0) * L / gamma.ppf(FLOOR_QUANTILE, L), 1e-300)
+    floor = np.maximum(np.quantile(auto, FLOOR_QUANTILE, axis=0) * L / gamma_ppf(FLOOR_QUANTILE, L), 1e-300)
     kernel = np.ones(w) / w
     smooth = np.stack([np.convolve(auto[:, i] * data.counts, kernel, "valid") for i in range(data.p)], axis=1)
     smooth /= np.convolve(data.counts.astype(float), kernel, "valid")[:, None]

@@ -47,9 +47,9 @@ from typing import Any
 
 import numpy as np
 from scipy.linalg import lapack
-from scipy.stats import chi2 as chi2_dist
 
 from wingopt.errors import InputError
+from wingopt.estimation.distributions import chi2_isf
 from wingopt.estimation.mhe import MovingHorizonEstimator
 from wingopt.estimation.mhe.consistency import SIGNIFICANCE
 from wingopt.estimation.mhe.model import MHEModel
@@ -342,7 +342,7 @@ class StreamingEstimator:
         if n not in self._isf:
             if len(self._isf) > 64:
                 self._isf.clear()
-            self._isf[n] = float(chi2_dist.isf(SIGNIFICANCE, max(n, 1)))
+            self._isf[n] = float(chi2_isf(SIGNIFICANCE, max(n, 1)))
         return self._isf[n]
 
     def _estimate(self, k: int, t: float, phase: str | None = None) -> Estimate:

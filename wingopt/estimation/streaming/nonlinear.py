@@ -56,9 +56,9 @@ import time
 
 import numpy as np
 from scipy.linalg import lapack
-from scipy.stats import chi2 as chi2_dist
 
 from wingopt.errors import InputError
+from wingopt.estimation.distributions import chi2_isf
 from wingopt.estimation.mhe.consistency import SIGNIFICANCE
 from wingopt.estimation.noise import MHE_NOISE, resolve_noise_std
 from wingopt.estimation.realistic.load_model import LoadShapes
@@ -343,7 +343,7 @@ class NonlinearStreamingEstimator:
     def _threshold(self, n: int) -> float:
         if n not in self._isf:  # a handful of distinct n (missing samples): bounded
             self._isf = {} if len(self._isf) > 64 else self._isf
-            self._isf[n] = float(chi2_dist.isf(SIGNIFICANCE, max(n, 1)))
+            self._isf[n] = float(chi2_isf(SIGNIFICANCE, max(n, 1)))
         return self._isf[n]
 
     def _estimate(self, k: int, t: float, phase: str) -> Estimate:
