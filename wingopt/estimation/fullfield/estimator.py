@@ -183,7 +183,7 @@ def _modal_warnings(modal: ModalCheck | None, pp: PrestrainPrior) -> list[str]:
         rel = 100 * modal.prestrain_std_rel
         out.append(
             f"the frames do not identify the prestrains' ratio (it is the prior's): the loaded f11 = {f[0]:.1f} "
-            f"± {sf[0]:.2g} Hz and f21 = {f[1]:.1f} ± {sf[1]:.2g} Hz constrain each prestrain to ±{rel[0]:.3g} %, "
+            f"± {sf[0]:.2f} Hz and f21 = {f[1]:.1f} ± {sf[1]:.2f} Hz constrain each prestrain to ±{rel[0]:.3g} %, "
             f"±{rel[1]:.3g} % (within 3 % needs each frequency to ±{100 * modal.needed_rel:.2g} %); a calibration "
             "record (wingopt calibrate) fixes it"
         )
