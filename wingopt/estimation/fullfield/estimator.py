@@ -26,10 +26,11 @@ import numpy as np
 
 from wingopt.estimation.fullfield.data import field_data, inplane_check
 from wingopt.estimation.fullfield.frames import frame_loads
+from wingopt.estimation.fullfield.modes import ModalCheck, modal_check
 from wingopt.estimation.fullfield.settings import FullFieldSettings
 from wingopt.estimation.fullfield.steady import PrestrainPrior, SteadyFit, fit_prior
 from wingopt.estimation.fullfield.system import PressureFromShape
-from wingopt.estimation.fullfield.tension import DynamicTension, dynamic_tension
+from wingopt.estimation.fullfield.tension import MIN_FLUCTUATION, DynamicTension, dynamic_tension, fluctuation
 from wingopt.estimation.realistic.load_model import LoadShapes
 from wingopt.estimation.realistic.record_problem import ParameterPrior
 from wingopt.estimation.result import IdentificationResult
@@ -127,7 +128,10 @@ def fullfield_identify(
         load = np.broadcast_to(best.load(), (idx.size, best.load().size))
         deflection = np.broadcast_to(best.deflection(), (idx.size, model.n))
         lift, lift_std = np.full(idx.size, mean), np.full(idx.size, std)
-    info = _info(s, mode, data, fits, w, best, mean, std, pp, fvk, dyn)
+    modal = None
+    if mode == "frames" and s.modes and fluctuation(data) >= MIN_FLUCTUATION:
+        modal = modal_check(data, best.system, best.prestrain)
+    info = _info(s, mode, data, fits, w, best, mean, std, pp, fvk, dyn, modal)
     if mode == "frames":
         info["frames_chi2_per_datum_median"] = float(np.median(fl.chi2_per_datum))
     return IdentificationResult(
@@ -170,11 +174,34 @@ def _source(pp: PrestrainPrior, dyn: DynamicTension | None) -> str:
     return f"the frames' dynamics (buffeting) on the {prior}" if dyn is not None and dyn.used else prior
 
 
-def _info(s, mode, data, fits, w, best: SteadyFit, mean, std, pp: PrestrainPrior, fvk, dyn) -> dict:
+def _modal_warnings(modal: ModalCheck | None, pp: PrestrainPrior) -> list[str]:
+    if modal is None:
+        return []
+    out = []
+    f, sf = modal.measured, modal.measured_std
+    if not pp.calibrated and not modal.identifies:
+        rel = 100 * modal.prestrain_std_rel
+        out.append(
+            f"the frames do not identify the prestrains' ratio (it is the prior's): the loaded f11 = {f[0]:.1f} "
+            f"± {sf[0]:.2f} Hz and f21 = {f[1]:.1f} ± {sf[1]:.2f} Hz constrain each prestrain to ±{rel[0]:.3g} %, "
+            f"±{rel[1]:.3g} % (within 3 % needs each frequency to ±{100 * modal.needed_rel:.2g} %); a calibration "
+            "record (wingopt calibrate) fixes it"
+        )
+    if np.any(np.abs(modal.misfit) > 3.0):
+        p = modal.predicted
+        out.append(
+            f"the loaded frequencies measured ({f[0]:.1f}, {f[1]:.1f} Hz) are {np.max(np.abs(modal.misfit)):.2g} sd "
+            f"off the model's ({p[0]:.1f}, {p[1]:.1f} Hz): its stiffness or mass is off (an air's added mass, a "
+            "wrong density or thickness)"
+        )
+    return out
+
+
+def _info(s, mode, data, fits, w, best: SteadyFit, mean, std, pp: PrestrainPrior, fvk, dyn, modal=None) -> dict:
     ex, ey = best.prestrain
     sx, sy = best.prestrain_std
     fr = data.frames
-    warnings = _warnings(best, pp, data, dyn is not None and dyn.used)
+    warnings = _warnings(best, pp, data, dyn is not None and dyn.used) + _modal_warnings(modal, pp)
     if s.prestrain == "dynamics" and dyn is not None and not dyn.used:
         warnings.append(f"the frames' dynamics do not give the tension ({dyn.reason}): the prior's is used")
     return {
@@ -216,6 +243,7 @@ def _info(s, mode, data, fits, w, best: SteadyFit, mean, std, pp: PrestrainPrior
         "prestrain_source": _source(pp, dyn),
         "prestrain_mode": s.prestrain,
         "tension_from_dynamics": None if dyn is None else dyn.as_dict(pp),
+        "loaded_modes": None if modal is None else modal.as_dict(),
         "prestrain_field_pull": best.pull,
         "adequacy": {"chi2_per_datum": best.post.chi2_per_datum, "data": best.post.data},
         "model_adequate": bool(best.post.chi2_per_datum < ADEQUATE_CHI2),

@@ -55,6 +55,10 @@ class FullFieldSettings:
         Fraction of the points a frame needs valid to be used.
     leading_edge : {"x0", "x1"} or None
         The aerodynamic prior's leading edge (``None``: the problem file's, else both).
+    modes : bool
+        Time-resolved mode, a record that fluctuates: the first two loaded frequencies measured from
+        the frames' modal spectra, against the model's, and what they say about the prestrains
+        (:mod:`.modes`; ``info["loaded_modes"]``, about 1 s of CPU).
     """
 
     mode: str = "auto"
@@ -68,6 +72,7 @@ class FullFieldSettings:
     inertia: bool = True
     min_valid: float = 0.5
     leading_edge: str | None = None
+    modes: bool = True
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:

@@ -26,7 +26,7 @@ import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
 from wingopt.membrane.full import FvKMembrane
-from wingopt.membrane.parameters import MembraneParameters
+from wingopt.membrane.parameters import MembraneParameters, prestress_tensions
 
 __all__ = ["PressureFromShape", "Posterior", "posterior"]
 
@@ -111,6 +111,19 @@ class PressureFromShape:
         self._s0 = K[:n, :n].toarray() - kwu @ coupled
         self._gx, self._gy = fvk.gx.toarray(), fvk.gy.toarray()
         self._fnl = bare.force(self.z)
+
+    @property
+    def mass(self) -> np.ndarray:
+        """The deflection's mass matrix ``rho h M`` (dense, n x n)."""
+        m = self.fvk.mass
+        return m.toarray() if hasattr(m, "toarray") else np.asarray(m)
+
+    def tangent(self, prestrain) -> np.ndarray:
+        """The reduced FvK tangent about ``z_hat`` at ``prestrain`` (dense, n x n): the load's stiffening included."""
+        par = self.fvk.params
+        e = MembraneParameters(float(prestrain[0]), float(prestrain[1]), par.viscous_scale, par.kelvin_voigt_scale)
+        tx, ty = prestress_tensions(self.fvk.problem.material, e)
+        return self._s0 + tx * self._gx + ty * self._gy
 
     def at(self, prestrain: tuple[float, float]):
         """``(A, offset, solve, S, s, fvk)`` at ``prestrain``: ``y = W - B ẑ + offset``, ``solve(rhs)`` the

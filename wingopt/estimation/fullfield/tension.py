@@ -35,7 +35,7 @@ from wingopt.estimation.realistic.load_model import LoadShapes
 from wingopt.estimation.realistic.model_form import PRESTRAIN_MODEL_FORM_REL
 from wingopt.membrane.parameters import MembraneParameters
 
-__all__ = ["DynamicTension", "dynamic_tension", "MIN_FLUCTUATION", "MAX_CHI2", "MIN_FRAMES"]
+__all__ = ["DynamicTension", "dynamic_tension", "fluctuation", "MIN_FLUCTUATION", "MAX_CHI2", "MIN_FRAMES"]
 
 log = logging.getLogger(__name__)
 
@@ -94,12 +94,17 @@ class _Frames:
         self.basis = data.basis
 
 
+def fluctuation(data: FieldData) -> float:
+    """The frames' RMS deflection fluctuation about their mean, in units of the point noise."""
+    return float(np.sqrt(np.mean(((data.fit.coef[data.used] - data.mean_z) @ data.basis.T) ** 2))) / data.sigma
+
+
 def dynamic_tension(
     data: FieldData, shapes: LoadShapes, system: PressureFromShape, y0: np.ndarray, weight: np.ndarray,
     prior: PrestrainPrior,
 ) -> DynamicTension:  # fmt: skip
     """The prestrains that make every frame's load the steady load's shape times an amplitude (module docstring)."""
-    fluct = float(np.sqrt(np.mean(((data.fit.coef[data.used] - data.mean_z) @ data.basis.T) ** 2))) / data.sigma
+    fluct = fluctuation(data)
     if data.count < MIN_FRAMES or fluct < MIN_FLUCTUATION:
         why = f"{data.count} frames, fluctuation {fluct:.3g} x the noise: too little dynamics to fit"
         return DynamicTension(np.zeros(2), np.eye(2), float("nan"), fluct, False, why)
