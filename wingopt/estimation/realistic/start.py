@@ -8,6 +8,7 @@ import logging
 
 import numpy as np
 
+from wingopt.errors import InputError
 from wingopt.estimation.realistic.record_problem import RecordProblem
 from wingopt.membrane import bubble
 from wingopt.membrane.modal import BergerModal, FvKModal, ModalMembrane
@@ -81,13 +82,20 @@ class _Wing:
 
 def modal_model(model, kind, modes, dt, substeps, stretch_gain, cubic_modes) -> ModalMembrane:
     """The estimator's modal model, built once per wing and settings: a lab's records of one wing
-    share it (the FvK tensor of 30 cubic modes takes 1-1.5 s, more than a steady record's fit)."""
-    return _modal_model(_Wing(model), kind, modes, dt, substeps, stretch_gain, cubic_modes)
+    share it (the FvK tensor of 30 cubic modes takes 1-1.5 s, more than a steady record's fit). The
+    sample period and sub-steps are not part of the build (the modes and the tensor do not depend on
+    them): records at 300 Hz and 1 kHz share one build, each with its own ``dt`` and ``substeps``."""
+    if not (isinstance(substeps, (int, np.integer)) and substeps >= 1):
+        raise InputError(f"substeps = {substeps!r}: expected an integer >= 1")
+    if not (np.isfinite(dt) and dt > 0):
+        raise InputError(f"dt = {dt!r}: expected a positive sample period (s)")
+    bm = _modal_model(_Wing(model), kind, modes, stretch_gain, cubic_modes)
+    return dataclasses.replace(bm, dt=float(dt), substeps=int(substeps))
 
 
 @functools.lru_cache(maxsize=4)
-def _modal_model(wing: _Wing, kind, modes, dt, substeps, stretch_gain, cubic_modes) -> ModalMembrane:
+def _modal_model(wing: _Wing, kind, modes, stretch_gain, cubic_modes) -> ModalMembrane:
     model = wing.model
     if kind == "fvk":
-        return FvKModal.build(model, modes, dt=dt, substeps=substeps, cubic_modes=cubic_modes)
-    return BergerModal.build(model, modes, dt=dt, substeps=substeps, stretch_gain=stretch_gain)
+        return FvKModal.build(model, modes, cubic_modes=cubic_modes)
+    return BergerModal.build(model, modes, stretch_gain=stretch_gain)
