@@ -33,7 +33,7 @@ from wingopt.estimation.realistic.prior_check import load_prior_check
 from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior, RecordProblem
 from wingopt.estimation.realistic.settings import LOAD_MODELS, MEMBRANE_MODELS, RealisticSettings
 from wingopt.estimation.realistic.solver import Budget, Fit, levenberg_marquardt
-from wingopt.estimation.realistic.start import initial_state_prior, modal_model, scan
+from wingopt.estimation.realistic.start import initial_state_prior, modal_model, scan, short_start
 from wingopt.estimation.realistic.steady_estimator import is_steady, steady_identify
 from wingopt.estimation.realistic.stopping import FitStop, Watched, behind, stalled
 from wingopt.estimation.realistic.tension_profile import tension_profile
@@ -112,7 +112,7 @@ def realistic_identify(
         )
         # the alternative is fitted with few iterations first: it is finished only if it wins
         cap = s if i == 0 else s.replace(max_iter=min(s.max_iter, 12))
-        candidates[kind] = (rp, fit_(rp, scan(rp, np.sign(p0)), cap, (stalled,)))
+        candidates[kind] = (rp, fit_(rp, short_start(rp, scan(rp, np.sign(p0))), cap, (stalled,)))
     if len(candidates) == 2 and candidates["linear"][1].cost < candidates["nonlinear"][1].cost:
         rp, f = candidates["linear"]
         candidates["linear"] = (rp, fit_(rp, f.theta, rules=(stalled,)))

@@ -10,10 +10,11 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation.realistic.record_problem import RecordProblem
+from wingopt.estimation.realistic.solver import levenberg_marquardt
 from wingopt.membrane import bubble
 from wingopt.membrane.modal import BergerModal, FvKModal, ModalMembrane
 
-__all__ = ["initial_state_prior", "modal_model", "scan", "SCAN_S"]
+__all__ = ["initial_state_prior", "modal_model", "scan", "short_start", "SCAN_S", "SHORT_START_ITER"]
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +64,26 @@ def scan(rp: RecordProblem, sign_pref: float) -> np.ndarray:
     best = int(np.argmin(costs))
     log.debug("scan: best amplitude %+.2f prior std (cost %.4g)", amps[best], costs[best])
     return th[best]
+
+
+SHORT_START_ITER = 15
+"""Levenberg–Marquardt iterations of :func:`short_start` at most."""
+
+
+def short_start(rp: RecordProblem, theta0: np.ndarray) -> np.ndarray:
+    """A start for the whole record's fit: ``theta0`` refined by a fit of the record's first
+    ``SCAN_S`` seconds (at most ``SHORT_START_ITER`` iterations; the transient there holds the
+    tension, the load and the initial state). Its iterations cost a fraction of the whole
+    record's, and the whole fit then starts near its optimum (L1 on FvK truth, 1 s: 18 whole-record
+    iterations from the scan). Records shorter than twice ``SCAN_S`` start from ``theta0``. Part of
+    the start-up, as the scan: not counted in ``max_total_iter``."""
+    n = int(np.searchsorted(rp.t, rp.t[0] + SCAN_S, side="right"))
+    if 2 * n > rp.t.size:
+        return theta0
+    short = dataclasses.replace(rp, t=rp.t[:n], y=rp.y[:n])
+    fit = levenberg_marquardt(short, theta0, SHORT_START_ITER)
+    log.debug("short start: %d iterations on %d samples, cost %.4g", fit.iterations, n, fit.cost)
+    return fit.theta
 
 
 class _Wing:
