@@ -141,7 +141,7 @@ def _show(rec: dict) -> None:
 def run(args) -> int:
     preset = ComparisonPreset(
         loads=_items(args.loads),
-        noises=tuple(parse_noise(s) for s in _items(args.noise)),
+        noise_fractions=tuple(parse_noise(s) for s in _items(args.noise)),
         seeds=args.seeds,
         first_seed=args.first_seed,
         methods=_items(args.methods),

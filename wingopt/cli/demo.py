@@ -6,6 +6,7 @@ import argparse
 import json
 
 from wingopt.cli import OUT_HELP
+from wingopt.cli import options as opt
 from wingopt.results import to_jsonable
 
 ORDER = 1
@@ -29,16 +30,19 @@ def register(sub, common) -> None:
     )
     p.add_argument("--out", default="wingopt-demo", help="default ./wingopt-demo; " + OUT_HELP)
     p.add_argument("--quick", action="store_true", help="coarse meshes and short runs (a smoke test, not the results)")
+    opt.add(p, "--force")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from wingopt import resources
     from wingopt.workflows.demo import DemoConfig, run_demo, summary_table
 
-    summary = run_demo(
-        args.out, DemoConfig.quick() if args.quick else DemoConfig(), progress=None if not args.quiet else False
-    )
+    with resources.long_runs(args.force, "--force"):
+        summary = run_demo(
+            args.out, DemoConfig.quick() if args.quick else DemoConfig(), progress=None if not args.quiet else False
+        )
     if args.json:
         print(json.dumps(to_jsonable(summary)))
     else:

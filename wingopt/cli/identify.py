@@ -164,6 +164,7 @@ def register(sub, common) -> None:
     p.add_argument("--initial-load", type=float, help="sign prior, Pa (default: the problem's initial_load)")
     opt.add(p, "--noise-std")
     opt.add(p, "--max-memory")
+    opt.add(p, "--force")
     opt.add(p, "--no-plots")
     p.add_argument("--out", required=True, help=OUT_HELP)
     opt.add(p, "--json")
@@ -198,6 +199,13 @@ def identify_options(args):
 
 
 def run(args) -> int:
+    from wingopt import resources
+
+    with resources.long_runs(args.force, "--force"):
+        return _run(args)
+
+
+def _run(args) -> int:
     from wingopt.problem import load_problem, parse_mesh
     from wingopt.resources import parse_size
     from wingopt.results.writer import check_writable

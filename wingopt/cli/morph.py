@@ -13,6 +13,7 @@ import math
 
 from wingopt import resources
 from wingopt.cli import OUT_HELP
+from wingopt.cli import options as opt
 from wingopt.errors import InputError
 from wingopt.optim.registry import BACKENDS, FALLBACK
 from wingopt.plate.shapes import SHAPES
@@ -68,12 +69,7 @@ def register(sub, common) -> None:
     p.add_argument(
         "--max-memory", metavar="SIZE", help="refuse runs estimated to need more (e.g. 4G; default: what is available)"
     )
-    p.add_argument(
-        "--force",
-        action="store_true",
-        help=f"start a run estimated to take longer than the limit ({resources.fmt_seconds(resources.MAX_SECONDS)} "
-        "of CPU); without it such a run is refused before any work",
-    )
+    opt.add(p, "--force")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
     p.add_argument("--out", required=True, help=OUT_HELP)
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")

@@ -44,6 +44,13 @@ class DeprecatedOptionWarning(FutureWarning):
 
 MAX_MEMORY_HELP = "refuse runs estimated to need more (e.g. 4G; default: what is available)"
 
+LONG_RUN_HELP = (
+    "start a run estimated to take longer than the limit (1 day of CPU, wingopt.resources.MAX_SECONDS); "
+    "without it such a run is refused before any work"
+)
+"""The ``--force`` help of the commands whose size estimate can refuse a run for its time
+(identify, demo, morph: :func:`wingopt.resources.long_runs`)."""
+
 SHARED: dict[str, dict] = {
     "--seed": {"type": int, "default": 0, "metavar": "N", "help": "noise seed (default 0)"},
     "--n-seeds": {"type": int, "metavar": "N", "help": "how many noise seeds"},
@@ -51,6 +58,7 @@ SHARED: dict[str, dict] = {
     "--truth-mesh": {"default": "49x25", "metavar": "NXxNY", "help": "mesh of the simulated truth (default 49x25)"},
     "--t-end": {"type": float, "help": "duration, s"},
     "--max-memory": {"metavar": "SIZE", "help": MAX_MEMORY_HELP},
+    "--force": {"action": "store_true", "help": LONG_RUN_HELP},
     "--noise-std": {"type": float, "help": "sensor noise std, stretch units (default: estimated from the data)"},
     "--solver": {"help": "numerical solver"},
     "--workers": {"type": int, "metavar": "N", "help": "worker processes"},
@@ -85,6 +93,8 @@ PER_COMMAND: dict[str, str] = {
     "--out": "the output directory everywhere; demo has a default (./wingopt-demo)",
     "--data": "a CSV record; identify also takes '-' (standard input)",
     "--mesh": "the estimator's or the model's mesh; default: the problem's",
+    "--force": "do what is refused by default: identify, demo, morph start a run estimated beyond the time limit "
+    "(1 day of CPU); calibrate, compare, design-sensors let an output file replace an existing one",
 }
 """Shared names whose default or choices depend on the command, and why (documented in docs/cli.md)."""
 

@@ -34,11 +34,25 @@ def pyplot() -> type[_Figures]:
     return _Figures
 
 
-def save(fig, path: Path | None, tight: bool = True, dpi: int = 110):
-    """Lay out (unless ``tight=False``) and write ``fig`` as a PNG (110 dpi unless given); returns the figure."""
+MARGINS = (1.0, 0.55, 0.5, 0.45)
+"""Fixed margins (inches: left, bottom, right, top) of :func:`save`'s ``margins=True``: room for an
+axis label, the tick labels and a title (and a suptitle's line at the top)."""
+
+
+def save(fig, path: Path | None, tight: bool = True, dpi: int = 110, margins: bool = False):
+    """Lay out and write ``fig`` as a PNG (110 dpi unless given); returns the figure.
+
+    ``margins``: the fixed :data:`MARGINS` (a third of the time of ``tight``'s layout, which draws the
+    figure once more to measure it: ~0.15 s a figure, half of an identification's outputs); else
+    ``tight``: :meth:`~matplotlib.figure.Figure.tight_layout`; else as built.
+    """
     if path is None:
         return fig
-    if tight:
+    if margins:
+        w, h = fig.get_size_inches()
+        left, bottom, right, top = MARGINS
+        fig.subplots_adjust(left=left / w, bottom=bottom / h, right=1 - right / w, top=1 - top / h, wspace=0.35)
+    elif tight:
         fig.tight_layout()
     fig.savefig(path, dpi=dpi)
     return fig

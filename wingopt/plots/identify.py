@@ -35,7 +35,7 @@ def plot_load_field(
         fig.colorbar(im, ax=ax, label="Pa", shrink=0.8)
     if title:
         fig.suptitle(title)
-    return _save(fig, path)
+    return _save(fig, path, margins=True)
 
 
 def _axes(ax):
@@ -81,7 +81,7 @@ def plot_lift(
     ax.legend(loc="best")
     if title:
         ax.set_title(title)
-    return _save(fig, path if own else None)
+    return _save(fig, path if own else None, margins=True)
 
 
 def plot_errors(
@@ -105,7 +105,7 @@ def plot_errors(
     ax.legend(loc="best")
     if title:
         ax.set_title(title)
-    return _save(fig, path if own else None)
+    return _save(fig, path if own else None, margins=True)
 
 
 def plot_overlay(
@@ -169,7 +169,7 @@ def plot_overlay(
     ax.legend(loc="best", fontsize="small")
     if title:
         ax.set_title(title)
-    return _save(fig, path if own else None)
+    return _save(fig, path if own else None, margins=True)
 
 
 def _basis_space(space):

@@ -31,7 +31,7 @@ def plot_misfit(path: Path, adequacy: dict, title: str = "") -> Path:
     ax.set_title(f"{title} · model {verdict}" if title else f"model {verdict}")
     ax.grid(alpha=0.3, which="both")
     ax.legend(loc="best")
-    return _save(fig, path)
+    return _save(fig, path, margins=True)
 
 
 def plot_sensor_means(path: Path, info: dict, names, title: str = "") -> Path:
@@ -53,4 +53,4 @@ def plot_sensor_means(path: Path, info: dict, names, title: str = "") -> Path:
     ax.set_title(f"{title} · chi-square per datum {chi:.2f}" if chi is not None else title)
     ax.grid(alpha=0.3, axis="y")
     ax.legend(loc="best", fontsize="small")
-    return _save(fig, path)
+    return _save(fig, path, margins=True)

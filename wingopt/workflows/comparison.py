@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import InitVar, dataclass
 from pathlib import Path
 
 from wingopt.errors import InputError, SolverError
@@ -52,16 +53,8 @@ from wingopt.workflows.sweep.protocol import (
 from wingopt.workflows.sweep.records import RecordLog, read_records
 from wingopt.workflows.sweep.run import run_records
 
-__all__ = [
-    "comparison_study",
-    "sign_and_band_study",
-    "consistency_study",
-    "ComparisonPreset",
-    "run_comparison",
-    "LOADS",
-    "JEKF_MODES",
-    "write_overlays",
-]
+__all__ = ["comparison_study", "sign_and_band_study", "consistency_study", "ComparisonPreset", "run_comparison"]
+__all__ += ["LOADS", "JEKF_MODES", "write_overlays"]
 
 LOADS = ("L1", "L2", "L3")
 """The load cases of the comparison."""
@@ -155,11 +148,12 @@ class ComparisonPreset:
     ``sign_seeds`` seeds at 5 % noise; the consistency study; the MHE's load space and state prior
     (:class:`~wingopt.estimation.options.IdentifyOptions`); the truth's mesh; the JEKFs' order
     ``jekf_modes`` (their lowest modes only, :data:`JEKF_MODES` by default, as the demo's; ``None``:
-    every mode, the exact filter, ~10x the CPU time).
+    every mode, the exact filter, ~10x the CPU time). ``noise_fractions``: the noise levels as
+    FRACTIONS of each sensor's peak (0.01 = 1 %); the former keyword ``noises`` warns (:class:`FutureWarning`).
     """
 
     loads: tuple[str, ...] = LOADS
-    noises: tuple[float, ...] = (0.01, 0.05)
+    noise_fractions: tuple[float, ...] = (0.01, 0.05)
     seeds: int = 5
     first_seed: int = 0
     methods: tuple[str, ...] = METHODS
@@ -171,10 +165,15 @@ class ComparisonPreset:
     state_prior: str = "1"
     truth_mesh: tuple[int, int] = TRUTH_NODES
     jekf_modes: int | None = JEKF_MODES
+    noises: InitVar[tuple[float, ...] | None] = None
 
-    def __post_init__(self) -> None:
+    def __post_init__(self, noises: tuple[float, ...] | None) -> None:
         from wingopt.resources import LIMITS, check_count
 
+        if noises is not None:
+            msg = "ComparisonPreset(noises=...) is deprecated, use noise_fractions (the same fractions)"
+            warnings.warn(msg, FutureWarning, stacklevel=3)
+            object.__setattr__(self, "noise_fractions", tuple(noises))
         if self.jekf_modes is not None and (
             isinstance(self.jekf_modes, bool) or not isinstance(self.jekf_modes, int) or self.jekf_modes < 1
         ):
@@ -185,7 +184,7 @@ class ComparisonPreset:
         for name, given, words in (
             ("loads", self.loads, ", ".join(LOADS)),
             ("methods", self.methods, ", ".join(METHODS)),
-            ("noise", self.noises, "noise levels in percent, e.g. 1,5"),
+            ("noise", self.noise_fractions, "noise levels in percent, e.g. 1,5"),
         ):
             if self.table and not given:
                 raise InputError(f"{name} = {','.join(map(str, given))!r}: expected at least one ({words})")
@@ -203,7 +202,7 @@ class ComparisonPreset:
             raise InputError("seeds: expected a positive integer (first-seed, sign-seeds: non-negative)")
         check_count("seeds", self.seeds)
         check_count("sign-seeds", self.sign_seeds, "seeds")
-        tasks = len(self.loads) * len(self.noises) * self.seeds * len(self.methods) * (1 if self.table else 0)
+        tasks = len(self.loads) * len(self.noise_fractions) * self.seeds * len(self.methods) * (1 if self.table else 0)
         tasks += len(self.loads) * self.sign_seeds
         if tasks > LIMITS["tasks"]:
             raise InputError(
@@ -214,7 +213,8 @@ class ComparisonPreset:
     def runs(self) -> tuple[list[tuple], list[tuple]]:
         """The table's runs and the sign study's, as (load, noise, seed, method)."""
         seeds = range(self.first_seed, self.first_seed + self.seeds)
-        table = [(ld, nz, sd, m) for ld in self.loads for nz in self.noises for sd in seeds for m in self.methods]
+        noises = self.noise_fractions
+        table = [(ld, nz, sd, m) for ld in self.loads for nz in noises for sd in seeds for m in self.methods]
         sign = [(ld, 0.05, sd, "mhe") for ld in self.loads for sd in range(self.sign_seeds)]
         return (table if self.table else []), sign
 

@@ -17,7 +17,8 @@ from __future__ import annotations
 import logging
 import platform
 import time
-from dataclasses import dataclass
+import warnings
+from dataclasses import InitVar, dataclass
 from pathlib import Path
 
 from wingopt import __version__
@@ -42,17 +43,31 @@ and the seed's same-mesh protocol)."""
 
 @dataclass(frozen=True)
 class DemoConfig:
-    """What the demo runs. ``quick`` shrinks meshes and durations (tests, smoke runs)."""
+    """What the demo runs. ``quick`` shrinks meshes and durations (tests, smoke runs).
+
+    ``noise_fraction``: the identification's sensor noise as a FRACTION of each sensor's peak
+    (0.01 = 1 %). The former keyword ``noise`` (the same fraction) still works and warns
+    (:class:`FutureWarning`).
+    """
 
     plate_nodes: tuple[int, int] = (13, 61)
     t_end: float = 2.0
-    noise: float = 0.01
+    noise_fraction: float = 0.01
     seed: int = 0
     jekf_modes: int = 60
     identify_t_end: float = 1.0
     real_membrane: bool = True
     real_truth_nodes: tuple[int, int] = (49, 25)
     real_prestrain: tuple[float, float] = REAL_PRESTRAIN
+    noise: InitVar[float | None] = None
+
+    def __post_init__(self, noise: float | None) -> None:
+        if noise is not None:
+            warnings.warn("DemoConfig(noise=...) is deprecated, use noise_fraction (the same fraction)", FutureWarning,
+                          stacklevel=3)  # fmt: skip
+            object.__setattr__(self, "noise_fraction", float(noise))
+        if not (0 <= self.noise_fraction <= 1):
+            raise InputError(f"noise_fraction = {self.noise_fraction!r}: expected a fraction in [0, 1] (0.01 = 1 %)")
 
     @classmethod
     def quick(cls) -> DemoConfig:
@@ -164,7 +179,7 @@ def _run(cfg, writer, stages, summary, plate, membrane, t_start) -> None:
                 run = runs[method] = identify(
                     membrane,
                     load=load,
-                    noise_percent=100 * cfg.noise,
+                    noise_percent=100 * cfg.noise_fraction,
                     seed=cfg.seed,
                     method=method,
                     t_end=cfg.identify_t_end,
@@ -172,7 +187,7 @@ def _run(cfg, writer, stages, summary, plate, membrane, t_start) -> None:
                 )
                 write_identify_outputs(run, tmp / "identify" / f"{load}-{method}", plots=(method == "mhe"))
                 summary["identify"][load][method] = run.summary()
-            overlay(runs, tmp / "identify" / f"{load}-mhe-vs-jekf.png", f"{load}, {100 * cfg.noise:g} % noise")
+            overlay(runs, tmp / "identify" / f"{load}-mhe-vs-jekf.png", f"{load}, {100 * cfg.noise_fraction:g} % noise")
         # -- 2b. a real membrane: FvK truth, prestrain off the file's ---------------------------------
         if cfg.real_membrane:
             summary["real_membrane"] = run_real_membrane(membrane, cfg, tmp / "real-membrane", stages.start)
@@ -324,7 +339,7 @@ def _report(tmp: Path, summary: dict, cfg: DemoConfig) -> Report:
     rep.heading("2. Load identification on the membrane wing")
     rep.paragraph(
         f"Truth simulated on 49x25 (a finer mesh than the estimators' 25x13: no inverse crime), from the 1 cm "
-        f"bubble, {cfg.identify_t_end:g} s at 1 ms, {100 * cfg.noise:g} % noise (seed {cfg.seed}). The JEKF "
+        f"bubble, {cfg.identify_t_end:g} s at 1 ms, {100 * cfg.noise_fraction:g} % noise (seed {cfg.seed}). The JEKF "
         f"variants keep {cfg.jekf_modes} modes here for speed (same final errors to 3 digits as the exact filter "
         "on the tuned variant; the seed-faithful one tunes lambda on the noise-free truth, as the seed did). "
         "The seed's errors come from its own same-mesh protocol."

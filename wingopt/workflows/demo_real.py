@@ -32,7 +32,7 @@ def run_real_membrane(membrane, cfg, out: Path, stage=None) -> dict:
         run = identify(
             membrane,
             load="L1",
-            noise_percent=100 * cfg.noise,
+            noise_percent=100 * cfg.noise_fraction,
             seed=cfg.seed,
             model=model,
             truth="fvk",
@@ -77,7 +77,7 @@ def real_section(rep: Report, tmp: Path, summary: dict, cfg) -> None:
     rep.paragraph(
         f"Truth: the Föppl–von Kármán membrane (in-plane displacements, nonlinear strains) on {nx}x{ny}, prestrain "
         f"({ex:g}, {ey:g}) where the problem file says 0.05 in both directions, L1 from the 1 cm bubble, "
-        f"{cfg.identify_t_end:g} s at 1 ms, {100 * cfg.noise:g} % noise. First row: the seed's linear MHE "
+        f"{cfg.identify_t_end:g} s at 1 ms, {100 * cfg.noise_fraction:g} % noise. First row: the seed's linear MHE "
         "(file's tension); second: the realistic estimator with the cubic modal FvK membrane, prestrains and "
         "damping identified (the default of wingopt identify --data). The band is 1 sigma; chi-square per "
         "datum near 1 means the data fit the model; a misfit flag widens the band."

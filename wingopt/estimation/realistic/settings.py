@@ -66,9 +66,15 @@ class RealisticSettings:
     max_total_iter : int
         A transient record's work budget: Levenberg–Marquardt iterations of all its fits together
         (the main fit; the alternatives: linear membrane, gust, frame prior; the prior check's and
-        the tension profile's refits). Measured (FvK truth, 1 s at 1 kHz): L2 25, LE 17, L1 51, L3
-        143 (its prior check and frame prior); 4.6 s of white noise 80. The fits stop there, the
+        the tension profile's refits). Measured (FvK truth, 1 s at 1 kHz) before the early stops and
+        the short start (:mod:`.stopping`, :func:`.start.short_start`): L2 25, LE 17, L1 51, L3 143
+        (its prior check and frame prior); 4.6 s of white noise 80. With them L1 takes 3. The fits stop there, the
         alternatives left are named, and the result says so (``info["budget"]``, a warning).
+    stop_early : bool
+        Stop a fit that stalls far from converging, and the frame prior's fit once the evidence has
+        decided against it (:mod:`.stopping`: deterministic, by chi-squares and iteration counts;
+        a stalled fit stays flagged not converged and its band is widened). ``False``: every fit
+        runs to the solver's own test or ``max_iter`` (as before issue 26's speed work).
     cpu_s : float or None
         A CPU-second budget on top, for a hard limit beside the wing (``None``: none; CPU time is
         machine-dependent, so it is not the default: the same record would give another answer).
@@ -97,6 +103,7 @@ class RealisticSettings:
     cubic_modes: int = 16
     spectrum_bin_hz: float = 2.0
     max_total_iter: int = 160
+    stop_early: bool = True
     cpu_s: float | None = None
 
     def __post_init__(self) -> None:

@@ -1,0 +1,130 @@
+"""Early stops of a transient record's fits (:mod:`wingopt.estimation.realistic.stopping`, issue 26):
+a stall far from converging, and the frame prior's fit once the evidence has decided against it.
+Deterministic (chi-squares and iteration counts only); a record the model fits keeps its answer."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from wingopt.estimation.realistic import RealisticSettings, realistic_identify
+from wingopt.estimation.realistic.stopping import (
+    DECIDED_NATS,
+    STALL_MIN_DECREMENT,
+    STALL_WINDOW,
+    FitStop,
+    Watched,
+    behind,
+    stalled,
+)
+from wingopt.membrane import MembraneModel
+from wingopt.problem import load_problem
+from wingopt.workflows.protocols import simulate_case
+
+
+class _Cubic:
+    """``(theta^3 - b) / 0.01`` with a weak prior: a nonlinear problem with the solver's interface."""
+
+    b = np.array([1.0, 8.0])
+
+    def residuals(self, theta, jacobian=False):
+        theta = np.asarray(theta, float)
+        rd, rp = (theta**3 - self.b) / 0.01, 0.01 * theta
+        return (rd, rp, np.diag(3 * theta**2) / 0.01, 0.01 * np.eye(2)) if jacobian else (rd, rp)
+
+
+def _watched(costs, decrement):
+    w = Watched(_Cubic())
+    w.residuals(np.array([1.5, 1.5]), True)
+    w.costs = list(costs)
+    w.decrement = lambda: decrement
+    return w
+
+
+def test_a_stall_is_slow_progress_short_of_what_the_local_model_predicts():
+    slow = [100.0 - 0.05 * k for k in range(STALL_WINDOW + 1)]  # 0.25 in the window
+    assert stalled(_watched(slow, 0.6)) is not None  # the model predicts 0.6 per step, the fit gets 0.05
+    assert stalled(_watched(slow, 0.1)) is None  # nearly converged: below STALL_MIN_DECREMENT, the solver finishes
+    assert STALL_MIN_DECREMENT > 0.1
+    assert stalled(_watched(slow, 0.2 + STALL_MIN_DECREMENT)) is not None
+    assert stalled(_watched(slow, 50.0)) is None  # far from the minimum: left to the solver and the budget
+    assert stalled(_watched(slow[:STALL_WINDOW], 0.6)) is None  # too few iterations to tell
+    fast = [100.0 - 2.0 * k for k in range(STALL_WINDOW + 1)]
+    assert stalled(_watched(fast, 0.6)) is None
+
+
+def test_a_fit_is_decided_behind_only_near_its_minimum_and_far_below():
+    w = _watched([10.0, 9.0], 1.0)
+    z = w.log_evidence()
+    assert behind(z + DECIDED_NATS + 1.0)(w) is not None  # even with the predicted decrease, out of reach
+    assert behind(z + DECIDED_NATS - 1.0)(w) is None
+    far = _watched([10.0, 9.0], 10 * DECIDED_NATS)  # the local model's bound means nothing there
+    assert behind(z + 1e6)(far) is None
+
+
+def test_the_watched_problem_records_the_iterates_and_the_stop_counts_on_the_budget():
+    from wingopt.estimation.realistic.solver import Budget, levenberg_marquardt
+
+    w = Watched(_Cubic())
+    budget = Budget(100)
+    stop = FitStop(budget, w, (lambda watched: "stop" if len(watched.costs) >= 3 else None,))
+    fit = levenberg_marquardt(w, np.array([3.0, 5.0]), 40, budget=stop)
+    assert stop.reason == "stop" and fit.iterations == 2 and budget.used == 2 and not fit.converged
+    assert np.all(np.diff(w.costs) < 0) and w.costs[-1] == pytest.approx(fit.cost)
+    free = Watched(_Cubic())
+    full = levenberg_marquardt(free, np.array([3.0, 5.0]), 40)
+    assert full.converged and len(free.costs) == full.iterations + 1  # one iterate per iteration, and the start
+
+
+@pytest.fixture(scope="module")
+def record():
+    problem = load_problem("membrane").with_mesh((13, 7))
+    case = simulate_case(problem, "L1", 0.01, 0, (17, 9), 0.3, truth="fvk")
+    return MembraneModel.from_problem(problem), case.measurements
+
+
+def test_a_record_the_model_fits_keeps_its_answer(record):
+    model, meas = record
+    full = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk", stop_early=False))
+    fast = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk"))
+    assert float(fast.lift[-1]) == float(full.lift[-1]) and float(fast.lift_std[-1]) == float(full.lift_std[-1])
+    assert fast.info["converged"] == full.info["converged"]
+    assert fast.info["budget"]["iterations"] <= full.info["budget"]["iterations"]
+    fc = fast.info["frame_check"]
+    assert fc["used"] == full.info["frame_check"]["used"] == "interior"
+    if fc.get("bound"):  # the frame prior's fit stopped decided: its evidence is an upper bound
+        assert fc["log_evidence"]["frame"] >= full.info["frame_check"]["log_evidence"]["frame"] - 1.0
+
+
+def test_the_short_start_brings_a_long_record_near_its_optimum():
+    """:func:`~wingopt.estimation.realistic.start.short_start`: a record longer than 0.6 s starts its
+    whole-record fit from a fit of its first 0.3 s (lower cost than the scan's point); a shorter one
+    from the scan's point itself."""
+    from wingopt.estimation.realistic import estimator as est
+    from wingopt.estimation.realistic.solver import cost
+    from wingopt.estimation.realistic.start import scan, short_start
+
+    problem = load_problem("membrane").with_mesh((13, 7))
+    model = MembraneModel.from_problem(problem)
+    meas = simulate_case(problem, "L1", 0.01, 0, (17, 9), 0.7, truth="fvk").measurements
+    problems = []
+    orig = est.levenberg_marquardt
+
+    def spy(rp, theta0, *args, **kwargs):
+        problems.append((rp.problem if hasattr(rp, "problem") else rp, np.array(theta0)))
+        return orig(rp, theta0, *args, **kwargs)
+
+    est.levenberg_marquardt = spy
+    try:
+        realistic_identify(model, meas, RealisticSettings(membrane_model="fvk", frame="off"))
+    finally:
+        est.levenberg_marquardt = orig
+    rp, theta_start = problems[0]  # the whole-record fit and where it started
+    assert rp.t.size == meas.t.size
+
+    theta_scan = scan(rp, 1.0)
+    assert np.array_equal(short_start(rp, theta_scan), theta_start)
+    assert sum(cost(rp, theta_start)) < sum(cost(rp, theta_scan))
+    k = int(np.searchsorted(rp.t, 0.5))
+    brief = dataclasses.replace(rp, t=rp.t[:k], y=rp.y[:k])
+    assert np.array_equal(short_start(brief, theta_scan), theta_scan)
