@@ -18,8 +18,10 @@ def test_a_signal_during_start_up_is_one_line(tmp_path, delay, sig):
     time.sleep(delay)
     p.send_signal(sig)
     out, err = p.communicate(timeout=60)
-    if "init_import_site" in err:  # a loaded machine: the signal came while Python itself started
-        assert p.returncode != 0 and not any(tmp_path.iterdir())  # (site packages), before any wingopt code
+    if "init_import_site" in err or (p.returncode == -sig and not err):
+        # a loaded machine: the signal came while Python itself was starting (site packages, before
+        # any wingopt code could install a handler): Python's default action, nothing written
+        assert not any(tmp_path.iterdir())
         return
     assert "Traceback" not in err, err
     if p.returncode != 0:  # the run may have finished before the signal on a fast machine

@@ -263,6 +263,7 @@ class NonlinearStreamingEstimator:
         self.sigma = self._noise(Y) if self._sigma_given is None else self._sigma_given
         self.x, self.G = self._prior_state(Y)
         self.Sigma = np.eye(self.d)
+        self.repairs = 0
         self._lc_diag = (np.arange(self.lc.start, self.lc.stop),) * 2
         dt = self.dt or self.bm.dt
         self._walk = (s.load_walk**2) * dt
@@ -328,8 +329,22 @@ class NonlinearStreamingEstimator:
         S = Hg @ SH
         S[np.diag_indices_from(S)] += (self.sigma if full else self.sigma[ok]) ** 2
         L, info = lapack.dpotrf(S, lower=1, clean=1)
-        if info != 0:  # S = H P H^T + R with R > 0: only a covariance broken by rounding gets here
-            raise np.linalg.LinAlgError("nonlinear streaming: innovation covariance not positive definite")
+        if info != 0:  # S = H P H^T + R with R > 0: only a Sigma that rounding made indefinite gets here
+            # (a stated noise far below the signal's): its negative eigenvalues are clipped, and counted
+            lam, V = np.linalg.eigh(0.5 * (Sigma + Sigma.T))
+            Sigma[:] = (V * np.maximum(lam, 0.0)) @ V.T
+            self.repairs += 1
+            if self.repairs == 1:
+                log.warning(
+                    "[ekf stream] the filter's covariance lost its positive definiteness to rounding and was "
+                    "repaired (a stated sensor noise far below the data's?); its consistency test judges the fit"
+                )
+            SH = Sigma @ Hg.T
+            S = Hg @ SH
+            S[np.diag_indices_from(S)] += (self.sigma if full else self.sigma[ok]) ** 2
+            L, info = lapack.dpotrf(S, lower=1, clean=1)
+            if info != 0:
+                raise np.linalg.LinAlgError("nonlinear streaming: innovation covariance not positive definite")
         Zw, _ = lapack.dtrtrs(L, np.hstack([SH.T, nu[:, None]]), lower=1)
         Z, w = Zw[:, :-1], Zw[:, -1]  # L^-1 (H Sigma), L^-1 nu
         dth = Z.T @ w
@@ -337,6 +352,8 @@ class NonlinearStreamingEstimator:
         x[self.ls] += dth[self.lc]
         x[self.ps] += dth[self.pc]
         Sigma -= Z.T @ Z
+        Sigma += Sigma.T  # the subtraction's rounding leaves it unsymmetric, and then indefinite
+        Sigma *= 0.5
         self._nis[i], self._nd[i] = float(w @ w), int(ok.sum())
 
     # -- output -----------------------------------------------------------------------------------
