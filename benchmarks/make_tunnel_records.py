@@ -51,7 +51,9 @@ def make(case: str, out: Path) -> Path:
     fwd = forward_model(problem, "fvk", nodes=NODES, params=params, substeps=SUBSTEPS)
     duration = (frames - 1) / RATE_HZ
     factor = Buffeting(float(rms), float(corner), int(order), int(seed), duration + 0.1).factor
-    protocol = RecordProtocol(t_end=duration, dt=1 / RATE_HZ, start="static", noise_fraction=0.0, seed=None, load_factor=factor)
+    protocol = RecordProtocol(
+        t_end=duration, dt=1 / RATE_HZ, start="static", noise_fraction=0.0, seed=None, load_factor=factor
+    )
     t0 = time.process_time()
     rec = simulate_truth(fwd, tunnel_load(f"tunnel-{load}", problem.width, problem.height), protocol)
     lift_mean = float(rec.true_lift / rec.load_factor[-1])  # the steady load's: the last sample's over its factor
