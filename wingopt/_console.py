@@ -8,20 +8,22 @@ the usual exit code (128 + the signal's number) and nothing written.
 
 from __future__ import annotations
 
-import signal
+import _signal  # the C module: no import of signal.py (and its enum) before the handlers are in
 import sys
 
 __all__ = ["main"]
 
+_NAMES = {_signal.SIGINT: "SIGINT", _signal.SIGTERM: "SIGTERM", _signal.SIGHUP: "SIGHUP"}
+
 
 def _starting(signum, frame):
-    sys.stderr.write(f"wingopt: {signal.Signals(signum).name} while starting; nothing written\n")
+    sys.stderr.write(f"wingopt: {_NAMES.get(signum, signum)} while starting; nothing written\n")
     raise SystemExit(128 + signum)
 
 
 def main() -> int:
-    for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
-        signal.signal(s, _starting)
+    for s in _NAMES:
+        _signal.signal(s, _starting)
     from wingopt.cli import main as cli_main
 
     return cli_main()
