@@ -7,20 +7,10 @@ import pytest
 
 from wingopt.errors import InputError
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify
-from wingopt.membrane import MembraneModel
-from wingopt.problem import load_problem
-from wingopt.workflows.protocols import simulate_case
 
 
-@pytest.fixture(scope="module")
-def record():
-    problem = load_problem("membrane").with_mesh((13, 7))
-    case = simulate_case(problem, "L1", 0.01, 0, (17, 9), 0.3, truth="fvk")
-    return MembraneModel.from_problem(problem), case.measurements
-
-
-def test_within_the_budget_the_answer_is_the_unlimited_one(record):
-    model, meas = record
+def test_within_the_budget_the_answer_is_the_unlimited_one(fvk_short_record):
+    model, meas = fvk_short_record
     free = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk", max_total_iter=10**6))
     dflt = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk"))
     b = dflt.info["budget"]
@@ -29,8 +19,8 @@ def test_within_the_budget_the_answer_is_the_unlimited_one(record):
     assert not any("work budget" in w for w in dflt.info["warnings"])
 
 
-def test_a_spent_budget_stops_the_fits_and_says_so(record):
-    model, meas = record
+def test_a_spent_budget_stops_the_fits_and_says_so(fvk_short_record):
+    model, meas = fvk_short_record
     res = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk", max_total_iter=3))
     b = res.info["budget"]
     assert b["exhausted"] and b["iterations"] == 3 and not res.info["converged"]

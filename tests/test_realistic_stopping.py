@@ -76,15 +76,8 @@ def test_the_watched_problem_records_the_iterates_and_the_stop_counts_on_the_bud
     assert full.converged and len(free.costs) == full.iterations + 1  # one iterate per iteration, and the start
 
 
-@pytest.fixture(scope="module")
-def record():
-    problem = load_problem("membrane").with_mesh((13, 7))
-    case = simulate_case(problem, "L1", 0.01, 0, (17, 9), 0.3, truth="fvk")
-    return MembraneModel.from_problem(problem), case.measurements
-
-
-def test_a_record_the_model_fits_keeps_its_answer(record):
-    model, meas = record
+def test_a_record_the_model_fits_keeps_its_answer(fvk_short_record):
+    model, meas = fvk_short_record
     full = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk", stop_early=False))
     fast = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk"))
     assert float(fast.lift[-1]) == float(full.lift[-1]) and float(fast.lift_std[-1]) == float(full.lift_std[-1])

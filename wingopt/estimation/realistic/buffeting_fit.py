@@ -20,7 +20,6 @@ optimum (the precision of the last Levenberg–Marquardt fit, weights frozen the
 from __future__ import annotations
 
 import logging
-import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,7 +35,6 @@ __all__ = [
     "objective",
     "result",
     "start",
-    "run",
     "full_order_frequencies",
     "modal_frequencies",
     "tension_ratio",
@@ -290,21 +288,3 @@ def result(
         problem=bp,
         abandoned=abandoned,
     )
-
-
-def run(
-    bp: BuffetingProblem,
-    theta_static: np.ndarray,
-    max_iter: int = 40,
-    corrections: int = 1,
-    tol: float = TOL,
-    abandon: float | None = None,
-) -> BuffetingFit:
-    """Start, fit and posterior of ``bp`` from a static fit's unknowns (``abandon``: as
-    :func:`fit_buffeting`'s)."""
-    t0 = time.process_time()
-    th = start(bp, theta_static)
-    theta, fit, its, ok, gave_up = fit_buffeting(bp, th, max_iter, corrections, tol, abandon)
-    out = result(bp, theta, fit, its, ok, gave_up)
-    log.debug("buffeting fit: %d iterations, %.2f s CPU", its, time.process_time() - t0)
-    return out
