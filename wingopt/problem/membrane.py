@@ -97,7 +97,7 @@ PRESSURE_PRIORS = ("auto", "interior", "frame", "aerodynamic")
 """Where the pressure may act: ``interior`` (zero on the frame, the seed's loads), ``frame`` (up to
 the frame: smooth interior shapes plus free-edge ones), ``aerodynamic`` (thin-airfoil shapes from
 the leading edge: an assumption that narrows a steady record's band), ``auto`` (a transient record
-weighs interior and frame by evidence; a steady record, whose four means cannot tell, takes frame)."""
+weighs interior and frame by evidence; a steady record weighs frame and aerodynamic)."""
 
 
 @dataclass(frozen=True)
