@@ -12,8 +12,7 @@ from wingopt.estimation.realistic.stopping import (
     DECIDED_NATS,
     STALL_MIN_DECREMENT,
     STALL_WINDOW,
-    FitStop,
-    Watched,
+    EarlyStop,
     behind,
     stalled,
 )
@@ -34,10 +33,13 @@ class _Cubic:
 
 
 def _watched(costs, decrement):
-    w = Watched(_Cubic())
-    w.residuals(np.array([1.5, 1.5]), True)
-    w.costs = list(costs)
-    w.decrement = lambda: decrement
+    """A monitor that has seen iterates of these ``costs``, the last with this Newton ``decrement``."""
+    from wingopt.estimation.realistic.solver import Iterate
+
+    rd, rp, Jd, Rp = _Cubic().residuals(np.array([1.5, 1.5]), True)
+    w = EarlyStop(())
+    for k, c in enumerate(costs):
+        w(Iterate(k, np.array([1.5, 1.5]), float(c), float(decrement), Jd.T @ Jd + Rp.T @ Rp))
     return w
 
 
@@ -62,18 +64,20 @@ def test_a_fit_is_decided_behind_only_near_its_minimum_and_far_below():
     assert behind(z + 1e6)(far) is None
 
 
-def test_the_watched_problem_records_the_iterates_and_the_stop_counts_on_the_budget():
-    from wingopt.estimation.realistic.solver import Budget, levenberg_marquardt
+def test_the_monitor_sees_every_iterate_and_its_stop_counts_on_the_budget():
+    from wingopt.estimation.realistic.solver import Budget, cost, levenberg_marquardt
 
-    w = Watched(_Cubic())
+    stop = EarlyStop((lambda watched: "stop" if len(watched.costs) >= 3 else None,))
     budget = Budget(100)
-    stop = FitStop(budget, w, (lambda watched: "stop" if len(watched.costs) >= 3 else None,))
-    fit = levenberg_marquardt(w, np.array([3.0, 5.0]), 40, budget=stop)
-    assert stop.reason == "stop" and fit.iterations == 2 and budget.used == 2 and not fit.converged
-    assert np.all(np.diff(w.costs) < 0) and w.costs[-1] == pytest.approx(fit.cost)
-    free = Watched(_Cubic())
-    full = levenberg_marquardt(free, np.array([3.0, 5.0]), 40)
-    assert full.converged and len(free.costs) == full.iterations + 1  # one iterate per iteration, and the start
+    fit = levenberg_marquardt(_Cubic(), np.array([3.0, 5.0]), 40, budget=budget, monitor=stop)
+    assert stop.reason == fit.stopped == "stop" and fit.iterations == 2 and budget.used == 2
+    assert not fit.converged and not fit.out_of_budget  # stopped by its monitor, not by the budget
+    assert np.all(np.diff(stop.costs) < 0) and stop.costs[-1] == pytest.approx(fit.cost)
+    assert stop.last.cost == pytest.approx(sum(cost(_Cubic(), fit.theta)))
+    seen = []
+    full = levenberg_marquardt(_Cubic(), np.array([3.0, 5.0]), 40, monitor=lambda it: seen.append(it.index))
+    assert full.converged and full.stopped is None
+    assert seen == list(range(full.iterations))  # every iterate short of the converged one, the start first
 
 
 def test_a_record_the_model_fits_keeps_its_answer(fvk_short_record):

@@ -35,7 +35,7 @@ from wingopt.estimation.realistic.settings import LOAD_MODELS, MEMBRANE_MODELS, 
 from wingopt.estimation.realistic.solver import Budget, Fit, levenberg_marquardt
 from wingopt.estimation.realistic.start import initial_state_prior, modal_model, scan, short_start
 from wingopt.estimation.realistic.steady_estimator import is_steady, steady_identify
-from wingopt.estimation.realistic.stopping import FitStop, Watched, behind, stalled
+from wingopt.estimation.realistic.stopping import EarlyStop, behind, stalled
 from wingopt.estimation.realistic.tension_profile import tension_profile
 from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements.series import Measurements
@@ -61,18 +61,16 @@ def realistic_identify(
         return steady_identify(model, meas, s, initial_load)
     t0 = time.perf_counter()
     budget = Budget(s.max_total_iter, s.cpu_s)  # every fit of this record draws on it
-    stops: dict[int, tuple[str, Watched, Fit]] = {}  # id(fit) -> why it stopped early (:mod:`.stopping`); the
-    # fit itself is kept in the value, so that its id is not reused while the record is estimated
+    stops: dict[int, tuple[EarlyStop, Fit]] = {}  # id(fit) -> its monitor, when it stopped early (:mod:`.stopping`);
+    # the fit itself is kept in the value, so that its id is not reused while the record is estimated
 
     def fit_(r: RecordProblem, theta0: np.ndarray, cap: RealisticSettings = s, rules=()) -> Fit:
         if not (rules and s.stop_early):
             return levenberg_marquardt(r, theta0, cap.max_iter, budget=budget)
-        w = Watched(r)
-        stop = FitStop(budget, w, rules)
-        f = levenberg_marquardt(w, theta0, cap.max_iter, budget=stop)
-        f = dataclasses.replace(f, out_of_budget=f.out_of_budget and budget.exhausted)
-        if stop.reason is not None and not f.converged:
-            stops[id(f)] = (stop.reason, w, f)
+        monitor = EarlyStop(rules)
+        f = levenberg_marquardt(r, theta0, cap.max_iter, budget=budget, monitor=monitor)
+        if f.stopped is not None:
+            stops[id(f)] = (monitor, f)
         return f
 
     skipped: list[str] = []
@@ -138,25 +136,25 @@ def realistic_identify(
         if s.load_model == "gust" or fit.cost - fit_g.cost > 2 * added:
             rp, fit, chosen = rg, fit_g, "gust"
             ad = assess(meas.t, _residual_matrix(rp, fit), fit.effective_parameters, s.segment_s)
-    stall = stops.get(id(fit), ())[:2]
+    stall = stops.get(id(fit), (None,))[0]
     res, fit = _finish(rp, fit, fits, chosen, ad, sigma, noise_source, t0, s, bubble_known, p0, fit_)
-    if stall:
-        res = _stalled(res, fit, *stall)
+    if stall is not None:
+        res = _stalled(res, fit, stall)
     if weigh_frame and budget.exhausted:
         skipped.append("the frame load prior")
     elif weigh_frame:
         rf = dataclasses.replace(rp, shapes=frame_shapes(model, shapes, s, p0))
         z = log_evidence(fit)
         fit_f = fit_(rf, embed(rp, fit.theta, rf), rules=(stalled, behind(z)))
-        stop_f = stops.get(id(fit_f), ())[:2]
-        if stop_f and stop_f[0].startswith("decided"):
-            res.info["frame_check"] = _decided(z, *stop_f)
+        stop_f = stops.get(id(fit_f), (None,))[0]
+        if stop_f is not None and stop_f.reason.startswith("decided"):
+            res.info["frame_check"] = _decided(z, stop_f)
         else:
             ad_f = assess(meas.t, _residual_matrix(rf, fit_f), fit_f.effective_parameters, s.segment_s)
             res_f, fit_f = _finish(rf, fit_f, {chosen: fit_f}, chosen, ad_f, sigma, noise_source, t0, s, bubble_known,
                                    p0, fit_)  # fmt: skip
-            if stop_f:
-                res_f = _stalled(res_f, fit_f, *stop_f)
+            if stop_f is not None:
+                res_f = _stalled(res_f, fit_f, stop_f)
             res = weigh(res, res_f, z, log_evidence(fit_f), _frame_note)
     res.info["membrane_selection"] = selection
     res.info["budget"] = {"iterations": budget.used, "max_total_iter": s.max_total_iter, "cpu_s": budget.spent,
@@ -188,10 +186,10 @@ def _load_prior(model: MembraneModel, p0: float, s: RealisticSettings) -> tuple[
     return shapes, s.frame == "auto" and kind == "auto" and edge == 0
 
 
-def _stalled(res: IdentificationResult, fit: Fit, reason: str, w: Watched) -> IdentificationResult:
+def _stalled(res: IdentificationResult, fit: Fit, w: EarlyStop) -> IdentificationResult:
     """A fit stopped by a stall (:func:`.stopping.stalled`): its band widened by ``sqrt(1 + decrement)``
     (the local model's minimum is within ``sqrt(decrement)`` posterior sigma), and a warning."""
-    widen = float(np.sqrt(1.0 + w.stall_decrement))
+    widen, reason = float(np.sqrt(1.0 + w.stall_decrement)), w.reason
     res.info["stopped_early"] = {"reason": reason, "iterations": fit.iterations, "band_widening": widen}
     res.info["warnings"].append(
         f"the fit {reason}: stopped after {fit.iterations} iterations, not converged; band widened x{widen:.2f}"
@@ -199,7 +197,7 @@ def _stalled(res: IdentificationResult, fit: Fit, reason: str, w: Watched) -> Id
     return dataclasses.replace(res, lift_std=res.lift_std * widen)
 
 
-def _decided(z_interior: float, reason: str, w: Watched) -> dict:
+def _decided(z_interior: float, w: EarlyStop) -> dict:
     """``info["frame_check"]`` when the frame prior's fit stopped decided (:func:`.stopping.behind`):
     its log-evidence and weight are upper bounds (``"bound": True``)."""
     return {
@@ -207,7 +205,7 @@ def _decided(z_interior: float, reason: str, w: Watched) -> dict:
         "weight_frame": float(np.exp(min(w.reach - z_interior, 0.0))),
         "bound": True,
         "used": "interior",
-        "frame_fit": f"stopped after {len(w.costs) - 1} iterations, {reason}",
+        "frame_fit": f"stopped after {len(w.costs) - 1} iterations, {w.reason}",
     }
 
 

@@ -2,21 +2,24 @@
 
 Nielsen's damping update on the dense normal equations ``(J^T J + mu diag) d = -J^T r`` (data
 and prior rows together), the exact Jacobian at every accepted point. It stops when the model
-predicts less than ``tol`` chi-square units of decrease. The Gauss–Newton matrix at the optimum
-is the posterior precision (the cost is a chi-square).
+predicts less than ``tol`` chi-square units of decrease, after ``max_iter`` iterations, when the
+record's :class:`Budget` is spent, or when a ``monitor`` shown every iterate (:class:`Iterate`)
+gives a reason to stop (:mod:`.stopping`). The Gauss–Newton matrix at the optimum is the
+posterior precision (the cost is a chi-square).
 """
 
 from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from wingopt.errors import SolverError
 
-__all__ = ["Fit", "Budget", "levenberg_marquardt", "cost"]
+__all__ = ["Fit", "Budget", "Iterate", "Monitor", "levenberg_marquardt", "cost"]
 
 log = logging.getLogger(__name__)
 
@@ -37,6 +40,8 @@ class Fit:
     decrement: float = float("nan")
     """The Newton decrement ``g^T H^-1 g`` at ``theta0`` (chi-square units: the undamped Gauss–Newton
     step's predicted decrease from the start)."""
+    stopped: str | None = None
+    """The monitor's reason when it stopped the fit (not converged), else ``None``."""
 
     @property
     def cost(self) -> float:
@@ -52,6 +57,28 @@ class Fit:
     def effective_parameters(self) -> float:
         """``trace(J_d P^-1 J_d^T)``: the unknowns the data determine (the rest is prior)."""
         return float(np.einsum("ij,ji->", self.covariance, self.data_jacobian.T @ self.data_jacobian))
+
+
+@dataclass(frozen=True, eq=False)
+class Iterate:
+    """An iterate of :func:`levenberg_marquardt` as its monitor sees it: ``index`` (0 the start),
+    ``theta``, the chi-square ``cost``, the Newton ``decrement`` ``g^T H^-1 g`` (what one undamped
+    Gauss–Newton step would remove) and the Gauss–Newton matrix ``precision``."""
+
+    index: int
+    theta: np.ndarray
+    cost: float
+    decrement: float
+    precision: np.ndarray
+
+    @property
+    def log_evidence(self) -> float:
+        """Laplace log-evidence here (up to the data's normalisation)."""
+        return float(-0.5 * self.cost - 0.5 * np.linalg.slogdet(self.precision)[1])
+
+
+Monitor = Callable[[Iterate], "str | None"]
+"""Called once per iterate that has not converged; a string stops the fit and is its reason."""
 
 
 def cost(problem, theta) -> tuple[float, float]:
@@ -81,7 +108,12 @@ class Budget:
 
 
 def levenberg_marquardt(
-    problem, theta0: np.ndarray, max_iter: int = 40, tol: float = 1e-2, budget: Budget | None = None
+    problem,
+    theta0: np.ndarray,
+    max_iter: int = 40,
+    tol: float = 1e-2,
+    budget: Budget | None = None,
+    monitor: Monitor | None = None,
 ) -> Fit:
     """Minimise ``problem``'s chi-square from ``theta0``.
 
@@ -89,7 +121,8 @@ def levenberg_marquardt(
     (its Newton decrement ``g^T H^-1 g``: the point is within ``sqrt(tol)`` posterior standard
     deviations of the minimum of the local model in every direction). The damped step's own
     predicted decrease is no test: with a large damping it is small far from the minimum. A spent
-    ``budget`` stops it before the next iteration (``out_of_budget``; not converged).
+    ``budget`` stops it before the next iteration (``out_of_budget``; not converged), and so does a
+    ``monitor`` that returns a reason for an iterate (``Fit.stopped``).
     """
     theta = np.array(theta0, dtype=float)
     mu, nu = 1e-3, 2.0
@@ -99,6 +132,7 @@ def levenberg_marquardt(
     it = 0
     jacobian_first = True
     first_decrement = None
+    stopped = None
     while True:
         H = Jd.T @ Jd + Rp.T @ Rp
         g = Jd.T @ rd + Rp.T @ rp
@@ -112,6 +146,11 @@ def levenberg_marquardt(
             break
         if it >= max_iter or (budget is not None and budget.exhausted):
             break
+        if monitor is not None:
+            stopped = monitor(Iterate(it, theta, f, decrement, H))
+            if stopped is not None:
+                log.debug("LM: stopped by its monitor after %d iterations: %s", it, stopped)
+                break
         it += 1
         if budget is not None:
             budget.used += 1
@@ -161,4 +200,4 @@ def levenberg_marquardt(
     log.debug("LM: %d iterations, cost %.4g, converged %s", it, f, converged)
     H = Jd.T @ Jd + Rp.T @ Rp
     out = not converged and it < max_iter and budget is not None and budget.exhausted
-    return Fit(theta, float(rd @ rd), float(rp @ rp), H, Jd, rd, it, converged, out, first_decrement)
+    return Fit(theta, float(rd @ rd), float(rp @ rp), H, Jd, rd, it, converged, out, first_decrement, stopped)

@@ -25,8 +25,8 @@ record's work without changing its answer (issue 26, ``benchmarks/bench_records.
   17–21 nats apart; white noise 31).
 
 Both rules read only iteration counts and chi-squares, so the same record stops at the same point
-on any machine. They act through the solver's ``budget`` (:class:`FitStop`), read once per
-iteration before its step, and a problem wrapper (:class:`Watched`) that sees every evaluation.
+on any machine. They act as the solver's ``monitor`` (:class:`EarlyStop`), which the solver shows
+every iterate before its step.
 """
 
 from __future__ import annotations
@@ -34,10 +34,10 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 
-import numpy as np
+from wingopt.estimation.realistic.solver import Iterate
 
 __all__ = ["STALL_WINDOW", "STALL_DROP", "STALL_DECREMENT", "STALL_MIN_DECREMENT", "DECIDED_NATS"]
-__all__ += ["Watched", "FitStop", "stalled", "behind"]
+__all__ += ["EarlyStop", "stalled", "behind"]
 
 log = logging.getLogger(__name__)
 
@@ -60,54 +60,44 @@ DECIDED_NATS = 12.0
 fit stops: a weight below ``exp(-12)`` = 6e-6."""
 
 
-class Watched:
-    """``problem`` (anything with ``residuals(theta, jacobian)``) with its iterates recorded: the
-    chi-square of every Levenberg–Marquardt iterate and the last one's evaluation with its Jacobian."""
+class EarlyStop:
+    """The solver's monitor for one fit (:func:`~.solver.levenberg_marquardt`'s ``monitor``): it
+    records the chi-square of every iterate and asks each of ``rules`` in turn whether to stop.
 
-    def __init__(self, problem) -> None:
-        self.problem = problem
+    ``costs``: the iterates' chi-squares (the start first); ``last``: the latest
+    :class:`~.solver.Iterate`; ``reason``: the rule's description once one fired (else ``None``).
+    A rule may leave what it measured on the monitor (``stall_decrement``, ``reach``).
+    """
+
+    def __init__(self, rules: tuple[Rule, ...]) -> None:
+        self.rules = rules
         self.costs: list[float] = []
-        self.last = None  # (rd, rp, Jd, Rp) at the latest iterate
-        self._best = np.inf
+        self.last: Iterate | None = None
+        self.reason: str | None = None
 
-    def residuals(self, theta, jacobian: bool = False):
-        out = self.problem.residuals(theta, jacobian)
-        f = float(out[0] @ out[0] + out[1] @ out[1])
-        if jacobian and np.isfinite(f) and f <= self._best:
-            # the solver computes the Jacobian at the start, at an accepted trial, or right after
-            # accepting one: a point no worse than any seen is the new iterate
-            self._best = f
-            if self.costs and self.last is not None and f == self.costs[-1]:
-                self.costs[-1] = f  # the same point's Jacobian (after a trial without one)
-            else:
-                self.costs.append(f)
-            self.last = out
-        elif np.isfinite(f) and f < self._best:
-            self._best = f  # an accepted trial without its Jacobian (it follows)
-        return out
+    def __call__(self, iterate: Iterate) -> str | None:
+        self.costs.append(iterate.cost)
+        self.last = iterate
+        for rule in self.rules:
+            self.reason = rule(self)
+            if self.reason is not None:
+                log.debug("fit stopped after %d iterates: %s", len(self.costs), self.reason)
+                break
+        return self.reason
 
     def decrement(self) -> float:
-        """Newton decrement ``g^T H^-1 g`` at the latest iterate (the chi-square the undamped
-        Gauss–Newton step would remove)."""
-        rd, rp, Jd, Rp = self.last
-        H = Jd.T @ Jd + Rp.T @ Rp
-        g = Jd.T @ rd + Rp.T @ rp
-        try:
-            return float(g @ np.linalg.solve(H, g))
-        except np.linalg.LinAlgError:
-            return np.inf
+        """Newton decrement at the latest iterate (the chi-square the undamped Gauss–Newton step would remove)."""
+        return self.last.decrement
 
     def log_evidence(self) -> float:
         """Laplace log-evidence at the latest iterate (as :func:`.frame_check.log_evidence`)."""
-        rd, rp, Jd, Rp = self.last
-        H = Jd.T @ Jd + Rp.T @ Rp
-        return float(-0.5 * (rd @ rd + rp @ rp) - 0.5 * np.linalg.slogdet(H)[1])
+        return self.last.log_evidence
 
 
-Rule = Callable[[Watched], "str | None"]
+Rule = Callable[["EarlyStop"], "str | None"]
 
 
-def stalled(w: Watched) -> str | None:
+def stalled(w: EarlyStop) -> str | None:
     """A stall (see the module docstring): its description, or ``None``."""
     c = w.costs
     if len(c) <= STALL_WINDOW or c[-1 - STALL_WINDOW] - c[-1] >= STALL_DROP:
@@ -126,7 +116,7 @@ def stalled(w: Watched) -> str | None:
 def behind(z_other: float) -> Rule:
     """The rule that stops a fit whose evidence cannot come within :data:`DECIDED_NATS` of ``z_other``."""
 
-    def rule(w: Watched) -> str | None:
+    def rule(w: EarlyStop) -> str | None:
         if len(w.costs) < 2:
             return None
         dec = w.decrement()
@@ -141,42 +131,3 @@ def behind(z_other: float) -> Rule:
         return f"decided: its evidence, {reach:.1f} at most, is {z_other - reach:.1f} nats below the other prior's"
 
     return rule
-
-
-class FitStop:
-    """The solver's ``budget`` for one fit: the record's :class:`~.solver.Budget` (shared by its
-    fits, counted here) and the ``rules`` that stop this fit early, each asked once per iteration.
-
-    ``reason``: the rule's description once one fired (``None`` otherwise).
-    """
-
-    def __init__(self, budget, watched: Watched, rules: tuple[Rule, ...]) -> None:
-        self.budget, self.watched, self.rules = budget, watched, rules
-        self.reason: str | None = None
-        self._seen = 0
-
-    @property
-    def used(self) -> int:
-        return self.budget.used
-
-    @used.setter
-    def used(self, value: int) -> None:
-        self.budget.used = value
-
-    @property
-    def spent(self) -> float:
-        return self.budget.spent
-
-    @property
-    def exhausted(self) -> bool:
-        if self.budget.exhausted:
-            return True
-        n = len(self.watched.costs)
-        if self.reason is None and n > self._seen:
-            self._seen = n
-            for rule in self.rules:
-                self.reason = rule(self.watched)
-                if self.reason is not None:
-                    log.debug("fit stopped after %d iterates: %s", n, self.reason)
-                    break
-        return self.reason is not None
