@@ -44,10 +44,10 @@ def test_every_route_holds_the_truth_in_two_bands_and_says_where_its_tension_cam
 
 
 def test_the_routes_pinned_numbers(routes):
-    """Measured (docs/tunnel.md): 4 sensors -0.0 % (band 2.9 %): the default prior weighs the frame
+    """Measured (docs/tunnel.md): 4 sensors -0.0 % (band 4.3 %): the default prior weighs the frame
     prior and the aerodynamic shapes at either edge, and the record's buffeting picks the
     aerodynamic shapes at x = 0 (weight 1), so declaring them changes nothing; + calibration -1.0 %
-    (band 2.6 %); DIC full field -0.9 % (band 3.0 %), with the calibration +0.0 % (band 1.8 %).
+    (band 3.4 %); DIC full field -0.9 % (band 3.0 %), with the calibration +0.0 % (band 1.8 %).
     Under the frame prior alone the 4 sensors read +0.6 % with a band of 10 %."""
     rows, _, _ = routes
     assert abs(rows["4 sensors"]["error"]) < 0.02 and rows["4 sensors"]["band_N"] < 0.05 * 1.764

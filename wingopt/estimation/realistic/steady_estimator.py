@@ -33,6 +33,7 @@ from wingopt.estimation.realistic.steady_solutions import (
     Solution,
     buffeted_all,
     corrected,
+    misfit_scale,
     mixture,
     resonance,
     static_solutions,
@@ -193,6 +194,11 @@ def _warnings(best: Solution, sols: list[Solution], w: np.ndarray, scr, problem)
         out.append(
             f"the buffeting does not identify the tension (its posterior is {best.tension_ratio:.0%} of the prior's): "
             "the lift band carries the prior's tension"
+        )
+    if 1.2 < misfit_scale(best.static_chi2) and best.static_chi2 <= ADEQUATE[0]:
+        out.append(
+            f"the {best.label.split(',')[0]} load prior fits the sensors' mean at chi-square {best.static_chi2:.1f} "
+            f"per sensor (expected 1 or less): its lift band is widened x{misfit_scale(best.static_chi2):.2f}"
         )
     if best.static_chi2 > ADEQUATE[0]:
         out.append(
