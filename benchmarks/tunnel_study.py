@@ -67,13 +67,23 @@ def noisy(path: str, frames: int, seed: int, noise: float = 0.02, drop: float = 
     return Measurements(d["t"][:frames], y, ("S1", "S2", "S3", "S4")), truth
 
 
-def one(base, path: str, frames: int, prior: str, bin_hz: float) -> dict:
+def one(base, path: str, frames: int, prior: str, bin_hz: float, calibration: float | None = None) -> dict:
     name = os.path.basename(path)[:-4]
     seed = int(re.search(r"_s(\d+)_n", name).group(1))
     meas, truth = noisy(path, frames, seed)
     ident = dataclasses.replace(
         base.problem.identification, pressure_prior=prior, leading_edge="x1" if name.startswith("TE") else "x0"
     )
+    if calibration is not None:
+        # a calibration's posterior as `wingopt calibrate` writes it: each prestrain off the truth by
+        # `calibration` (relative; x high, y low), 1-sigma 0.001, the two strongly anticorrelated
+        ex, ey = truth["prestrain"]
+        ident = dataclasses.replace(
+            ident,
+            prestrain=(ex * (1 + calibration), ey * (1 - calibration)),
+            prestrain_std=(0.001, 0.001),
+            prestrain_correlation=-0.9,
+        )
     model = dataclasses.replace(base, problem=dataclasses.replace(base.problem, identification=ident))
     t0 = time.process_time()
     res = steady_identify(model, meas, RealisticSettings(membrane_model="fvk", spectrum_bin_hz=bin_hz))
@@ -154,6 +164,7 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", nargs="*", type=int, default=[450, 1400])
     ap.add_argument("--prior", default="auto", choices=("auto", "frame", "aerodynamic", "interior"))
     ap.add_argument("--bin-hz", type=float, default=RealisticSettings.spectrum_bin_hz, help="spectral bin width (Hz)")
+    ap.add_argument("--calibration", type=float, help="a calibrated prior this far off the truth (relative)")
     ap.add_argument("--out", help="append one JSON line per fit")
     ap.add_argument("--table", help="only print the table of a JSON-lines file")
     ap.add_argument("-v", "--verbose", action="store_true")
@@ -176,7 +187,7 @@ def main(argv=None) -> int:
     rows = []
     for path in paths:
         for frames in a.frames:
-            row = one(model, path, frames, a.prior, a.bin_hz)
+            row = one(model, path, frames, a.prior, a.bin_hz, a.calibration)
             rows.append(row)
             print(
                 f"{row['record'][:40]:40s} {row['frames']:5d} e {row['prestrain'][0]:.4f},{row['prestrain'][1]:.4f} "
