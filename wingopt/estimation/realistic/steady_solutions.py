@@ -121,7 +121,8 @@ def misfit_scale(static_chi2: float) -> float:
     load amplitudes to their standard error; a prior whose shapes cannot make the mean (the
     aerodynamic shapes on a load that is not quite thin-airfoil) would otherwise keep a band set by
     that standard error alone (measured: the stand-in's DIC virtual sensors at chi-square 3.1 per
-    sensor, +3.8 % at 2.4 bands)."""
+    sensor, +3.8 % at 2.4 bands). The fit stays adequate up to :data:`ADEQUATE` (beyond, a warning);
+    the factor is in ``info["adequacy"]["band_widening"]`` and each solution's ``band_widening``."""
     return float(np.sqrt(max(1.0, static_chi2))) if np.isfinite(static_chi2) else 1.0
 
 
