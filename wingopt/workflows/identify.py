@@ -69,6 +69,7 @@ class IdentifyRun:
     data_report: dict | None = None
     protocol: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    _errors: tuple | None = field(default=None, init=False, repr=False)
 
     def load_field(self, k: int = -1):
         """Callable ``(x, y) -> P`` of the estimated pressure at sample ``k`` (Pa)."""
@@ -99,8 +100,13 @@ class IdentifyRun:
         """Final relative L2 errors against the truth (simulated records only)."""
         if self.case is None:
             return {}
+        # Kept for the same result and truth: summary() is asked for twice per run (the outputs'
+        # summary.json and the caller's), and each evaluation integrates both fields on the truth mesh.
+        key = (self.result, self.case, self.model, self.method)
+        if self._errors is not None and all(a is b for a, b in zip(self._errors[0], key)):
+            return dict(self._errors[1])
         rec = evaluate(self.case, self.result, self.model, self.method)
-        return {
+        out = {
             "load_error": rec.load_error,
             "deflection_error": rec.deflection_error,
             "true_lift_N": rec.true_lift,
@@ -108,6 +114,8 @@ class IdentifyRun:
             "lift_error_note": "|lift - true lift| / ∫|P| (L2 has no net lift)",
             "sign_ok": rec.sign_ok,
         }
+        self._errors = (key, out)
+        return dict(out)
 
     def summary(self) -> dict:
         """The spec §7 summary: ``lift_N``, ``method``, ``wall_s`` and, with a truth, the errors."""
