@@ -304,7 +304,7 @@ class JointEKF:
         S = 0.5 * (S + S.T) + np.diag(self.R[ok])
         # LAPACK's potrf/potrs directly: the same arithmetic as scipy's cho_factor/cho_solve, without
         # their argument checks, which cost more than the 4x4 factorisation itself at every sample.
-        m = S.shape[0]
+        m, N = S.shape[0], U.shape[0]
         cS, info = _potrf(S, lower=1, clean=0)
         if info != 0:
             raise SolverError("jekf", "innovation covariance not positive definite", "check R > 0")
@@ -329,8 +329,10 @@ class JointEKF:
         self.x = self.x + K @ e
         # Joseph form (I - K H) P (I - K H)^T + K R K^T, expanded exactly as
         # P - K U^T - U K^T + K S K^T  =  P - [K, U] [U - K S, K]^T : one rank-2m BLAS update in place.
-        W = np.asfortranarray(np.hstack([K, U]))
-        V = np.asfortranarray(np.hstack([U - K @ S, K]))
+        W, V = np.empty((N, 2 * m), order="F"), np.empty((N, 2 * m), order="F")  # filled in place: no hstack copies
+        W[:, :m], W[:, m:] = K, U
+        np.subtract(U, K @ S, out=V[:, :m])
+        V[:, m:] = K
         # P is C-ordered and symmetric: update its transpose (Fortran view) in place, P^T -= V W^T.
         PT = dgemm(-1.0, V, W, beta=1.0, c=P.T, trans_b=True, overwrite_c=True)
         if not np.shares_memory(PT, P):  # pragma: no cover - BLAS wrapper copied; keep correctness
