@@ -284,7 +284,7 @@ def identify(
     est = resources.check(
         resources.estimate_identify(problem.nodes, samples, truth_nodes=truth_mesh, method=spec.method), max_memory
     )
-    membrane = MembraneModel.from_problem(problem)
+    membrane = _estimator_model(problem)
     case, report, protocol, frames = None, None, {}, None
     if load is not None:
         progress.info("simulating the %s truth of %s on %dx%d, %d samples (the whole run: about %s)", truth,
@@ -334,6 +334,23 @@ def identify(
         log.warning("%s", w)
     protocol["estimator"] = {"method": spec.method, "membrane": spec.model, "options": opts.as_dict()}
     return IdentifyRun(problem, membrane, spec.method, meas, result, wall, case, report, protocol, warnings)
+
+
+_MODELS: dict = {}
+"""The last estimator model built by :func:`identify` (a :class:`MembraneModel` is immutable): runs
+on one problem one after the other (the demo's nine, a comparison's estimators) share it and what
+it caches (its modes for the JEKF, the MHE's reduced bases) instead of assembling it for each."""
+
+
+def _estimator_model(problem) -> MembraneModel:
+    try:
+        cached = _MODELS.get(problem)
+    except TypeError:  # a problem that is not hashable: assembled afresh
+        return MembraneModel.from_problem(problem)
+    if cached is None:
+        _MODELS.clear()  # one model kept
+        cached = _MODELS[problem] = MembraneModel.from_problem(problem)
+    return cached
 
 
 def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = True) -> Path:
