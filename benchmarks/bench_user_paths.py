@@ -12,7 +12,10 @@ Each command's CPU time is the user + system time of its process and the process
 Measured on the 2-core development machine (load ~2), before (main at a6cc0a3) -> after:
 demo --quick 77.2 -> 27.3 s, demo 133.9 -> 81.8 s, smallest compare 91.5 -> 8.4 s (90.5 s with the
 exact JEKFs; 29 min in the issue), outputs of one identify 8.2 -> 1.2 s. CPU times rise ~1.5x when
-the machine is crowded (load 5: demo --quick 29-30 s).
+the machine is crowded (load 5: demo --quick 29-30 s). On the slower shared host (demo-speed
+branch, /usr/bin/time, warm numba cache): demo --quick 60.7 -> 36.7 s (median of 3; target not
+met: the linear MHE on the FvK truth with its FvK cross-check, the JEKFs' per-sample Python overhead
+and matplotlib's figures are what is left), demo 178.0 -> 96.4 s.
 
 Usage::
 

@@ -127,3 +127,16 @@ def test_failed_run_leaves_no_directory(tmp_path, monkeypatch, twist7):
         write_morph_outputs(twist7, out)
     assert not out.exists() and not any(p.name.startswith(".half") for p in tmp_path.iterdir())
     assert np.isfinite(twist7.closed_loop.final_shape_error)
+
+
+def test_selected_figures_only(twist7, tmp_path):
+    """``figures=``: only those are drawn (the quick demo draws the report's three); a bad name is
+    refused before anything is written."""
+    out = tmp_path / "some"
+    write_morph_outputs(twist7, out, figures=("surface", "voltages"))
+    assert {p.name for p in out.glob("*.png")} == {"voltages.png", "surface.png"}
+    with pytest.raises(InputError, match="figures"):
+        write_morph_outputs(twist7, tmp_path / "bad", figures=("surface", "strain"))
+    assert not (tmp_path / "bad").exists()
+    with pytest.raises(InputError, match="figures"):
+        write_morph_outputs(twist7, tmp_path / "bad", figures="surface")

@@ -12,8 +12,8 @@ from wingopt.results import to_jsonable
 ORDER = 1
 
 EXAMPLE = """examples:
-  wingopt demo                       # writes ./wingopt-demo/report.html (about 1.5 CPU-minutes)
-  wingopt demo --out /tmp/demo --quick --json      # about 30 s of CPU
+  wingopt demo                       # writes ./wingopt-demo/report.html (about 1.6 CPU-minutes)
+  wingopt demo --out /tmp/demo --quick --json      # about 40 s of CPU
 each of the 21 runs is a line on stderr with the time so far and an estimate of the rest (-q: none)"""
 
 

@@ -14,10 +14,20 @@ from pathlib import Path
 
 import numpy as np
 
+from wingopt.errors import InputError
 from wingopt.plots import pyplot as _pyplot
 from wingopt.plots import save as _save
 
-__all__ = ["plot_morph", "plot_voltages", "plot_tip_corners", "plot_shape_error", "plot_surface", "plot_strains"]
+__all__ = [
+    "FIGURES",
+    "figure_names",
+    "plot_morph",
+    "plot_voltages",
+    "plot_tip_corners",
+    "plot_shape_error",
+    "plot_surface",
+    "plot_strains",
+]
 
 GRID = (31, 121)
 """Evaluation grid (x, y) of the surface and strain figures."""
@@ -76,7 +86,7 @@ def plot_tip_corners(path: Path | None, results: list, ax=None):
     ax.set_title(f"{results[0].shape}: tip corners (dash-dot: target)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="best")
-    return _save(fig, path if own else None)
+    return _save(fig, path if own else None, margins=True)
 
 
 def plot_shape_error(path: Path | None, results: list, ax=None):
@@ -94,7 +104,7 @@ def plot_shape_error(path: Path | None, results: list, ax=None):
     ax.set_title(f"{results[0].shape}: shape error")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    return _save(fig, path if own else None)
+    return _save(fig, path if own else None, margins=True)
 
 
 def plot_surface(path: Path | None, results: list):
@@ -175,17 +185,40 @@ def plot_snapshots(path: Path | None, result, times=(0.1, 0.25, 0.5, 1.0, 2.0)):
     return _save(fig, path)
 
 
-def plot_morph(out: Path, result, compare_with=None) -> list[Path]:
-    """All figures of a run into the directory ``out``; returns their paths."""
+FIGURES = ("voltages", "tip_corners", "shape_error", "surface", "strains", "snapshots")
+"""The figures :func:`plot_morph` writes (``NAME.png``), in order."""
+
+
+def figure_names(figures=None) -> tuple[str, ...]:
+    """The names of :data:`FIGURES` that ``figures`` selects (``None``: all), checked."""
+    if figures is None:
+        return FIGURES
+    if isinstance(figures, str) or not all(isinstance(n, str) for n in figures):
+        raise InputError(f"figures = {figures!r}: expected names from {', '.join(FIGURES)}")
+    unknown = [n for n in figures if n not in FIGURES]
+    if unknown:
+        raise InputError(f"figures = {figures!r}: unknown {', '.join(unknown)}; expected some of {', '.join(FIGURES)}")
+    return tuple(n for n in FIGURES if n in figures)
+
+
+def plot_morph(out: Path, result, compare_with=None, figures=None) -> list[Path]:
+    """Figures of a run into the directory ``out``; returns their paths.
+
+    ``figures``: names from :data:`FIGURES` to write (default all of them).
+    """
     out = Path(out)
+    names = figure_names(figures)
     runs = [result] + ([compare_with] if compare_with is not None else [])
-    plot_voltages(out / "voltages.png", runs)
-    plot_tip_corners(out / "tip_corners.png", runs)
-    plot_shape_error(out / "shape_error.png", runs)
-    plot_surface(out / "surface.png", runs)
-    plot_strains(out / "strains.png", result)
-    plot_snapshots(out / "snapshots.png", result)
-    names = ("voltages", "tip_corners", "shape_error", "surface", "strains", "snapshots")
+    draw = {
+        "voltages": lambda path: plot_voltages(path, runs),
+        "tip_corners": lambda path: plot_tip_corners(path, runs),
+        "shape_error": lambda path: plot_shape_error(path, runs),
+        "surface": lambda path: plot_surface(path, runs),
+        "strains": lambda path: plot_strains(path, result),
+        "snapshots": lambda path: plot_snapshots(path, result),
+    }
+    for name in names:
+        draw[name](out / f"{name}.png")
     return [out / f"{n}.png" for n in names]
 
 

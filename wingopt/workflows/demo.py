@@ -32,6 +32,8 @@ from wingopt.workflows.demo_real import REAL_MODELS, REAL_PRESTRAIN, real_rows, 
 __all__ = ["DemoConfig", "run_demo", "overlay", "stage_costs", "SEED_TABLE_5_4", "SEED_TABLE_6_2", "SEED_JEKF_1PCT"]
 
 SHAPES = ("twist", "camber", "bending")
+REPORT_MORPH_FIGURES = ("voltages", "tip_corners", "surface")
+"""The morphing figures the report shows (the others are written for the user's inspection only)."""
 LOADS = ("L1", "L2", "L3")
 
 SEED_TABLE_5_4 = {(7, 31): [10.116, 40.902, 50.719, 121.488], (13, 61): [9.777, 40.329, 49.940, 119.560]}
@@ -46,7 +48,9 @@ class DemoConfig:
     """What the demo runs. ``quick`` shrinks meshes and durations (tests, smoke runs).
 
     ``noise_fraction``: the identification's sensor noise as a FRACTION of each sensor's peak
-    (0.01 = 1 %). The former keyword ``noise`` (the same fraction) still works and warns
+    (0.01 = 1 %). ``morph_figures``: the figures of each morphing run (names from
+    :data:`wingopt.plots.morph.FIGURES`; ``None``: all six; the quick run draws only the three the
+    report shows, :data:`REPORT_MORPH_FIGURES`). The former keyword ``noise`` (the same fraction) still works and warns
     (:class:`FutureWarning`).
     """
 
@@ -59,6 +63,7 @@ class DemoConfig:
     real_membrane: bool = True
     real_truth_nodes: tuple[int, int] = (49, 25)
     real_prestrain: tuple[float, float] = REAL_PRESTRAIN
+    morph_figures: tuple[str, ...] | None = None
     noise: InitVar[float | None] = None
 
     def __post_init__(self, noise: float | None) -> None:
@@ -68,24 +73,30 @@ class DemoConfig:
             object.__setattr__(self, "noise_fraction", float(noise))
         if not (0 <= self.noise_fraction <= 1):
             raise InputError(f"noise_fraction = {self.noise_fraction!r}: expected a fraction in [0, 1] (0.01 = 1 %)")
+        if self.morph_figures is not None:
+            from wingopt.plots.morph import figure_names
+
+            object.__setattr__(self, "morph_figures", figure_names(self.morph_figures))  # checked before any work
 
     @classmethod
     def quick(cls) -> DemoConfig:
-        return cls(plate_nodes=(7, 31), t_end=0.5, identify_t_end=0.5, jekf_modes=30, real_truth_nodes=(33, 17))
+        return cls(plate_nodes=(7, 31), t_end=0.5, identify_t_end=0.3, jekf_modes=30, real_truth_nodes=(29, 15),
+                   morph_figures=REPORT_MORPH_FIGURES)  # fmt: skip
 
 
 def stage_costs(cfg: DemoConfig) -> list[tuple[str, float]]:
     """The demo's stages in order, each with its a-priori cost: CPU seconds measured on one core for
-    the full (88 s in all) and the quick (29 s) configuration; the unlimited LQR's stage includes
-    writing the shape's outputs and figures. The progress lines rescale them as stages finish."""
+    the full (96 s in all) and the quick (37 s) configuration; the unlimited LQR's stage includes
+    writing the shape's outputs and figures, the first QP stage building the plate model and its
+    plant (shared by the nine runs). The progress lines rescale them as stages finish."""
     quick = cfg.plate_nodes[0] * cfg.plate_nodes[1] <= 7 * 31
-    morph = (1.0, 0.5, 2.5) if quick else (4.0, 3.0, 5.0)
+    morph = (0.7, 0.3, 1.5) if quick else (4.5, 0.7, 2.8)
     ident = (
-        {"mhe": 1.5, "jekf-seed": 2.0, "jekf-tuned": 1.0}
+        {"mhe": 2.5, "jekf-seed": 2.3, "jekf-tuned": 1.5}
         if quick
-        else {"mhe": 2.5, "jekf-seed": 4.0, "jekf-tuned": 2.0}
+        else {"mhe": 3.0, "jekf-seed": 6.5, "jekf-tuned": 3.0}
     )
-    real = {"linear": 5.0, "fvk": 2.0} if quick else {"linear": 14.0, "fvk": 5.0}
+    real = {"linear": 10.0, "fvk": 1.0} if quick else {"linear": 29.0, "fvk": 4.0}
     stages: list[tuple[str, float]] = []
     for shape in SHAPES:
         stages += [(f"morph {shape}: QP", morph[0]), (f"morph {shape}: saturated LQR", morph[1])]
@@ -154,15 +165,20 @@ def _run(cfg, writer, stages, summary, plate, membrane, t_start) -> None:
 
     with writer as tmp:
         # -- 1. morphing ----------------------------------------------------------------------
+        # One plate model for the nine runs (and the reference table): its plant's exact ZOH is
+        # cached per model, so it is computed once instead of once per run.
+        pm = None
         for shape in SHAPES:
             stages.start(f"morph {shape}: QP")
-            qp = morph(plate, shape, "qp", t_end=cfg.t_end, nodes=cfg.plate_nodes)
+            if pm is None:
+                pm = PlateModel.from_problem(plate, cfg.plate_nodes)
+            qp = morph(plate, shape, "qp", t_end=cfg.t_end, model=pm)
             stages.start(f"morph {shape}: saturated LQR")
             lo, hi = qp.vmin, qp.vmax
-            lqr_sat = morph(plate, shape, "lqr", vmin=lo, vmax=hi, t_end=cfg.t_end, nodes=cfg.plate_nodes)
+            lqr_sat = morph(plate, shape, "lqr", vmin=lo, vmax=hi, t_end=cfg.t_end, model=pm)
             stages.start(f"morph {shape}: seed LQR (unlimited)")
-            lqr_free = morph(plate, shape, "lqr", t_end=cfg.t_end, nodes=cfg.plate_nodes)
-            write_morph_outputs(qp, tmp / "morph" / shape, compare_with=lqr_sat)
+            lqr_free = morph(plate, shape, "lqr", t_end=cfg.t_end, model=pm)
+            write_morph_outputs(qp, tmp / "morph" / shape, compare_with=lqr_sat, figures=cfg.morph_figures)
             # The report shows the QP's figures; the unlimited LQR's run keeps its data, not its figures.
             write_morph_outputs(lqr_free, tmp / "morph" / f"{shape}-lqr-unlimited", plots=False)
             summary["morph"][shape] = {
@@ -199,7 +215,6 @@ def _run(cfg, writer, stages, summary, plate, membrane, t_start) -> None:
             "ours": mem.frequencies_hz(4),
             "seed": SEED_TABLE_6_2[(25, 13)],
         }
-        pm = PlateModel.from_problem(plate, cfg.plate_nodes)
         seed_plate = SEED_TABLE_5_4.get(tuple(cfg.plate_nodes))
         summary["tables"]["plate_5_4"] = {
             "mesh": list(cfg.plate_nodes),
@@ -331,9 +346,9 @@ def _report(tmp: Path, summary: dict, cfg: DemoConfig) -> Report:
     )  # fmt: skip
     for shape in summary["morph"]:
         d = tmp / "morph" / shape
-        for name, cap in (("voltages.png", "voltage histories, QP vs saturated LQR"),
-                          ("tip_corners.png", "tip-corner histories"),
-                          ("surface.png", "final surface against the target")):  # fmt: skip
+        caps = {"voltages": "voltage histories, QP vs saturated LQR", "tip_corners": "tip-corner histories",
+                "surface": "final surface against the target"}  # fmt: skip
+        for name, cap in ((f"{n}.png", caps[n]) for n in REPORT_MORPH_FIGURES):
             if (d / name).exists():
                 rep.figure(d / name, f"{shape}: {cap}")
     rep.heading("2. Load identification on the membrane wing")

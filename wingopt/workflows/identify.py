@@ -69,6 +69,7 @@ class IdentifyRun:
     data_report: dict | None = None
     protocol: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    _errors: tuple | None = field(default=None, init=False, repr=False)
 
     def load_field(self, k: int = -1):
         """Callable ``(x, y) -> P`` of the estimated pressure at sample ``k`` (Pa)."""
@@ -99,8 +100,13 @@ class IdentifyRun:
         """Final relative L2 errors against the truth (simulated records only)."""
         if self.case is None:
             return {}
+        # Kept for the same result and truth: summary() is asked for twice per run (the outputs'
+        # summary.json and the caller's), and each evaluation integrates both fields on the truth mesh.
+        key = (self.result, self.case, self.model, self.method)
+        if self._errors is not None and all(a is b for a, b in zip(self._errors[0], key)):
+            return dict(self._errors[1])
         rec = evaluate(self.case, self.result, self.model, self.method)
-        return {
+        out = {
             "load_error": rec.load_error,
             "deflection_error": rec.deflection_error,
             "true_lift_N": rec.true_lift,
@@ -108,6 +114,8 @@ class IdentifyRun:
             "lift_error_note": "|lift - true lift| / ∫|P| (L2 has no net lift)",
             "sign_ok": rec.sign_ok,
         }
+        self._errors = (key, out)
+        return dict(out)
 
     def summary(self) -> dict:
         """The spec §7 summary: ``lift_N``, ``method``, ``wall_s`` and, with a truth, the errors."""
@@ -276,7 +284,7 @@ def identify(
     est = resources.check(
         resources.estimate_identify(problem.nodes, samples, truth_nodes=truth_mesh, method=spec.method), max_memory
     )
-    membrane = MembraneModel.from_problem(problem)
+    membrane = _estimator_model(problem)
     case, report, protocol, frames = None, None, {}, None
     if load is not None:
         progress.info("simulating the %s truth of %s on %dx%d, %d samples (the whole run: about %s)", truth,
@@ -326,6 +334,23 @@ def identify(
         log.warning("%s", w)
     protocol["estimator"] = {"method": spec.method, "membrane": spec.model, "options": opts.as_dict()}
     return IdentifyRun(problem, membrane, spec.method, meas, result, wall, case, report, protocol, warnings)
+
+
+_MODELS: dict = {}
+"""The last estimator model built by :func:`identify` (a :class:`MembraneModel` is immutable): runs
+on one problem one after the other (the demo's nine, a comparison's estimators) share it and what
+it caches (its modes for the JEKF, the MHE's reduced bases) instead of assembling it for each."""
+
+
+def _estimator_model(problem) -> MembraneModel:
+    try:
+        cached = _MODELS.get(problem)
+    except TypeError:  # a problem that is not hashable: assembled afresh
+        return MembraneModel.from_problem(problem)
+    if cached is None:
+        _MODELS.clear()  # one model kept
+        cached = _MODELS[problem] = MembraneModel.from_problem(problem)
+    return cached
 
 
 def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = True) -> Path:

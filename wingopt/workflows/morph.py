@@ -28,7 +28,7 @@ from wingopt.control.tracking import make_lqr_controller
 from wingopt.errors import InputError, OutputError
 from wingopt.plate import PlateModel
 from wingopt.plate.shapes import SHAPES
-from wingopt.plots.morph import plot_morph
+from wingopt.plots.morph import figure_names, plot_morph
 from wingopt.problem import load_problem
 from wingopt.results import ResultDirectory, check_writable, write_csv, write_json
 from wingopt.status import RunStatus, from_solver_statuses, worst
@@ -282,6 +282,7 @@ def write_morph_outputs(
     compare_with: MorphResult | None = None,
     *,
     plots: bool = True,
+    figures: tuple[str, ...] | None = None,
     extra_summary: dict | None = None,
 ) -> dict:
     """Write ``summary.json``, ``voltages.csv``, ``history.csv`` and figures into ``out_dir`` (atomically).
@@ -297,6 +298,8 @@ def write_morph_outputs(
         ``"compare_with"`` and the figures compare both.
     plots : bool
         Write the figures.
+    figures : tuple of str, optional
+        Which figures (names from :data:`wingopt.plots.morph.FIGURES`); default all.
     extra_summary : dict, optional
         Merged into the summary before it is written.
 
@@ -309,6 +312,7 @@ def write_morph_outputs(
         raise InputError(f"result = {type(result).__name__}: expected the MorphResult of wingopt.morph")
     if compare_with is not None and not isinstance(compare_with, MorphResult):
         raise InputError(f"compare_with = {type(compare_with).__name__}: expected a MorphResult or None")
+    figures = figure_names(figures)  # checked before anything is written
     summary = result.summary()
     if compare_with is not None:
         summary["compare_with"] = compare_with.summary()
@@ -326,7 +330,7 @@ def write_morph_outputs(
                 np.column_stack([cl.t, cl.tip, cl.shape_error]),
             )
             if plots:
-                plot_morph(tmp, result, compare_with)
+                plot_morph(tmp, result, compare_with, figures)
     except OutputError:
         raise
     except OSError as exc:

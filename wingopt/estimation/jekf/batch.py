@@ -53,9 +53,7 @@ def filter_record(
     else:
         R_source = "setup()"
     N = measurements.count
-    loads = np.empty((N, ekf.n))
-    defl = np.empty((N, ekf.n))
-    lift = np.empty(N)
+    states = np.empty((N, ekf.size))  # mapped to loads, deflections and lift after the loop (one product each)
     lift_std = np.empty(N)
     nis = np.empty(N)
     innov = np.empty((N, ekf.p))
@@ -67,13 +65,12 @@ def filter_record(
     t0, c0 = time.perf_counter(), time.process_time()
     for k in iterator:
         ekf.step(measurements.values[k], t=float(measurements.t[k]))
-        loads[k] = ekf.load
-        defl[k] = ekf.deflection
-        lift[k] = ekf.lift
+        states[k] = ekf.x
         lift_std[k] = ekf.lift_std
         nis[k] = ekf.last_nis
         innov[k] = ekf.last_innovation
     ekf._symmetrize()
+    loads, defl, lift = ekf._histories(states)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     s = ekf.settings
     info = {
