@@ -114,7 +114,7 @@ def test_build_rejects_bad_cubic_modes(model):
 def test_identifies_lift_on_an_fvk_record_from_a_finer_mesh(model):
     """FvK truth on 33x17 (estimator 25x13), L1, 1 % noise, 0.3 s, prestrains (0.055, 0.045) off the
     file's 0.05. FvK model: lift +1.8 % with a 1.8 % band (1 sigma), adequate; the Berger model on
-    the same record: +16 %, flagged."""
+    the same record: +20 % after 40 iterations, flagged."""
     pr = model.problem
     rec = simulate_case(pr, "L1", 0.01, 3, (33, 17), 0.3, truth="fvk", prestrain=(0.055, 0.045), tell_noise=False)
     meas = rec.measurements
@@ -124,7 +124,8 @@ def test_identifies_lift_on_an_fvk_record_from_a_finer_mesh(model):
     assert abs(err) < 0.04 and abs(err) < 2 * res.lift_std[-1] / rec.true_lift, err
     assert res.info["model_adequate"]
     assert res.info["model"] == "nonlinear (FvK cubic, 10 modes)"
-    berger = realistic_identify(model, meas, s.replace(membrane_model="berger"))
+    # the Berger fit misfits and crawls (143 iterations, 38 s CPU, to its budget of 160): 40 show it
+    berger = realistic_identify(model, meas, s.replace(membrane_model="berger", max_total_iter=40))
     assert (berger.lift[-1] - rec.true_lift) / rec.true_lift > 0.1
     assert not berger.info["model_adequate"]
 
