@@ -18,9 +18,9 @@ modal optimum minus the modal model's are added to the modal model, and the fit 
 
 The sensors are quadratic and blind to the sign: a load and its negative, and a load and one with
 some lobes flipped, can fit equally. The fit starts from the prior sign's amplitude and from the
-first antisymmetric shape flipped; both load priors (zero on the frame; acting up to it,
-:mod:`.frame_check`) are fitted; the answers are weighed by their Laplace evidence: what the record
-cannot tell apart stays in the band.
+first antisymmetric shape flipped; the default's load priors (a pressure that may act up to the
+frame; the thin-airfoil shapes: :mod:`.steady_estimator`) are each fitted; the answers are weighed by
+their Laplace evidence: what the record cannot tell apart stays in the band.
 """
 
 from __future__ import annotations
