@@ -9,7 +9,7 @@ import numpy as np
 from wingopt.plots import pyplot as _pyplot
 from wingopt.plots import save as _save
 
-__all__ = ["plot_load_field", "plot_lift", "plot_errors", "plot_overlay", "error_histories"]
+__all__ = ["plot_load_field", "plot_lift", "plot_errors", "plot_overlay", "error_histories", "plot_identification"]
 
 
 def plot_load_field(
@@ -228,3 +228,30 @@ def error_histories(case, result, model, index: np.ndarray, order: int = 8) -> t
     w_true = truth_space.basis_matrix(x, y) @ np.asarray(case.trajectory.z, dtype=float)[kt].T
     w_est = defl_space.basis_matrix(x, y) @ np.asarray(result.deflection, dtype=float)[index].T
     return rel(p_true, p_est), rel(w_true, w_est)
+
+
+def plot_identification(tmp: Path, run, X, Y, Pg) -> None:
+    """The figures of an identification run (:class:`~wingopt.workflows.identify.IdentifyRun`) into
+    ``tmp``: the load field on the grid ``X, Y`` (``Pg``, Pa), the lift, the misfit and, with a truth,
+    the error histories."""
+    result, case = run.result, run.case
+    title = f"{run.protocol.get('load_case', 'data')} · {run.method}"
+    first = None
+    if result.method == "mhe" and "window" in result.info:
+        first = float(result.t[min(result.info["window"], result.t.size) - 1] - result.t[0])
+    plot_load_field(tmp / "load_field.png", X, Y, Pg, None if case is None else case.load(X, Y), title)
+    plot_lift(
+        tmp / "lift.png", result.t, result.lift, result.lift_std, None if case is None else case.true_lift, title, first
+    )
+    if "segments_t_s" in result.info.get("adequacy", {}):
+        from wingopt.plots.misfit import plot_misfit
+
+        plot_misfit(tmp / "misfit.png", result.info["adequacy"], title)
+    elif "sensor_fit" in result.info:  # a steady record: its data are the sensors' means
+        from wingopt.plots.misfit import plot_sensor_means
+
+        plot_sensor_means(tmp / "misfit.png", result.info, run.model.problem.sensor_names, title)
+    if case is not None:
+        idx = np.unique(np.linspace(0, result.t.size - 1, 41).astype(int))
+        le, de = error_histories(case, result, run.model, idx)
+        plot_errors(tmp / "errors.png", result.t[idx], le, de, title, first)

@@ -49,9 +49,8 @@ class DemoConfig:
 
     ``noise_fraction``: the identification's sensor noise as a FRACTION of each sensor's peak
     (0.01 = 1 %). ``morph_figures``: the figures of each morphing run (names from
-    :data:`wingopt.plots.morph.FIGURES`; ``None``: all six; the quick run draws only the three the
-    report shows, :data:`REPORT_MORPH_FIGURES`). The former keyword ``noise`` (the same fraction) still works and warns
-    (:class:`FutureWarning`).
+    :data:`wingopt.plots.morph.FIGURES`; ``None``: all six; the quick run draws the report's three,
+    :data:`REPORT_MORPH_FIGURES`). The former keyword ``noise`` still works and warns (FutureWarning).
     """
 
     plate_nodes: tuple[int, int] = (13, 61)
@@ -165,13 +164,9 @@ def _run(cfg, writer, stages, summary, plate, membrane, t_start) -> None:
 
     with writer as tmp:
         # -- 1. morphing ----------------------------------------------------------------------
-        # One plate model for the nine runs (and the reference table): its plant's exact ZOH is
-        # cached per model, so it is computed once instead of once per run.
-        pm = None
+        pm = PlateModel.from_problem(plate, cfg.plate_nodes)  # the nine runs and the table share its cached ZOH
         for shape in SHAPES:
             stages.start(f"morph {shape}: QP")
-            if pm is None:
-                pm = PlateModel.from_problem(plate, cfg.plate_nodes)
             qp = morph(plate, shape, "qp", t_end=cfg.t_end, model=pm)
             stages.start(f"morph {shape}: saturated LQR")
             lo, hi = qp.vmin, qp.vmax

@@ -43,7 +43,7 @@ from wingopt.status import RunStatus
 from wingopt.validate import check_nodes, check_number, check_seed
 from wingopt.values import LambdaChoice, NoiseLevel
 from wingopt.workflows.dic import dic_record
-from wingopt.workflows.protocols import TRUTH_NODES, check_truth_settings, simulate_case
+from wingopt.workflows.protocols import TRUTH_NODES, check_truth_settings, estimator_model, simulate_case
 from wingopt.workflows.studies import evaluate, load_field, protocol_sign
 
 log = logging.getLogger(__name__)
@@ -284,7 +284,7 @@ def identify(
     est = resources.check(
         resources.estimate_identify(problem.nodes, samples, truth_nodes=truth_mesh, method=spec.method), max_memory
     )
-    membrane = _estimator_model(problem)
+    membrane = estimator_model(problem)
     case, report, protocol, frames = None, None, {}, None
     if load is not None:
         progress.info("simulating the %s truth of %s on %dx%d, %d samples (the whole run: about %s)", truth,
@@ -336,23 +336,6 @@ def identify(
     return IdentifyRun(problem, membrane, spec.method, meas, result, wall, case, report, protocol, warnings)
 
 
-_MODELS: dict = {}
-"""The last estimator model built by :func:`identify` (a :class:`MembraneModel` is immutable): runs
-on one problem one after the other (the demo's nine, a comparison's estimators) share it and what
-it caches (its modes for the JEKF, the MHE's reduced bases) instead of assembling it for each."""
-
-
-def _estimator_model(problem) -> MembraneModel:
-    try:
-        cached = _MODELS.get(problem)
-    except TypeError:  # a problem that is not hashable: assembled afresh
-        return MembraneModel.from_problem(problem)
-    if cached is None:
-        _MODELS.clear()  # one model kept
-        cached = _MODELS[problem] = MembraneModel.from_problem(problem)
-    return cached
-
-
 def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = True) -> Path:
     """Write ``summary.json``, ``load.csv`` (uniform grid, edges included), ``lift.csv`` and figures.
 
@@ -391,31 +374,7 @@ def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = 
         else:
             write_csv(tmp / "lift.csv", ["t", "lift_N"], zip(result.t, result.lift))
         if plots:
-            _plots(tmp, run, X, Y, Pg)
+            from wingopt.plots.identify import plot_identification
+
+            plot_identification(tmp, run, X, Y, Pg)
     return Path(out_dir)
-
-
-def _plots(tmp: Path, run: IdentifyRun, X, Y, Pg) -> None:
-    from wingopt.plots.identify import error_histories, plot_errors, plot_lift, plot_load_field
-
-    result, case = run.result, run.case
-    title = f"{run.protocol.get('load_case', 'data')} · {run.method}"
-    first = None
-    if result.method == "mhe" and "window" in result.info:
-        first = float(result.t[min(result.info["window"], result.t.size) - 1] - result.t[0])
-    plot_load_field(tmp / "load_field.png", X, Y, Pg, None if case is None else case.load(X, Y), title)
-    plot_lift(
-        tmp / "lift.png", result.t, result.lift, result.lift_std, None if case is None else case.true_lift, title, first
-    )
-    if "segments_t_s" in result.info.get("adequacy", {}):
-        from wingopt.plots.misfit import plot_misfit
-
-        plot_misfit(tmp / "misfit.png", result.info["adequacy"], title)
-    elif "sensor_fit" in result.info:  # a steady record: its data are the sensors' means
-        from wingopt.plots.misfit import plot_sensor_means
-
-        plot_sensor_means(tmp / "misfit.png", result.info, run.model.problem.sensor_names, title)
-    if case is not None:
-        idx = np.unique(np.linspace(0, result.t.size - 1, 41).astype(int))
-        le, de = error_histories(case, result, run.model, idx)
-        plot_errors(tmp / "errors.png", result.t[idx], le, de, title, first)

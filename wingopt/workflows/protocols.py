@@ -14,6 +14,7 @@ import math
 from wingopt.errors import InputError
 from wingopt.membrane import (
     Gust,
+    MembraneModel,
     MembraneParameters,
     PressureLoad,
     RecordProtocol,
@@ -24,7 +25,7 @@ from wingopt.membrane import (
 from wingopt.problem.membrane import MembraneProblem
 from wingopt.validate import check_nodes, check_number
 
-__all__ = ["TRUTH_NODES", "TRUTHS", "simulate_case", "check_truth_settings"]
+__all__ = ["TRUTH_NODES", "TRUTHS", "simulate_case", "check_truth_settings", "estimator_model"]
 
 TRUTH_NODES = (49, 25)
 """Default mesh of the simulated truth (the estimator's default is the problem's 25x13)."""
@@ -151,3 +152,22 @@ def _simulate(
         load_factor=None if gust is None else gust.factor,
     )
     return simulate_truth(fwd, load, protocol)
+
+
+_MODELS: dict = {}
+"""The last estimator model built by :func:`~wingopt.workflows.identify.identify` (a
+:class:`MembraneModel` is immutable): runs on one problem one after the other (the demo's nine, a
+comparison's estimators) share it and what it caches (its modes for the JEKF, the MHE's reduced
+bases) instead of assembling it for each."""
+
+
+def estimator_model(problem: MembraneProblem) -> MembraneModel:
+    """The estimator's model of ``problem``: the last one built when it is the same problem (:data:`_MODELS`)."""
+    try:
+        cached = _MODELS.get(problem)
+    except TypeError:  # a problem that is not hashable: assembled afresh
+        return MembraneModel.from_problem(problem)
+    if cached is None:
+        _MODELS.clear()  # one model kept
+        cached = _MODELS[problem] = MembraneModel.from_problem(problem)
+    return cached

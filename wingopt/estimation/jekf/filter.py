@@ -25,7 +25,6 @@ Use :func:`jekf_identify` for a one-shot run, or the step-able :class:`JointEKF`
 
 from __future__ import annotations
 
-import functools
 import logging
 import math
 import time
@@ -48,14 +47,6 @@ from wingopt.membrane.model import MembraneModel
 __all__ = ["JEKFSettings", "JointEKF", "joint_transition"]
 
 log = logging.getLogger(__name__)
-
-
-@functools.lru_cache(maxsize=16)
-def _identity(m: int) -> np.ndarray:
-    """A read-only ``m x m`` identity (the right-hand side of the innovation covariance's inverse)."""
-    eye = np.eye(m)
-    eye.flags.writeable = False
-    return eye
 
 
 class JointEKF:
@@ -310,7 +301,7 @@ class JointEKF:
             raise SolverError("jekf", "innovation covariance not positive definite", "check R > 0")
         # S is only m x m (m <= p sensors): invert it and multiply, rather than a triangular solve
         # with N right-hand sides (a threaded BLAS call that stalls on a busy machine).
-        Sinv, info = _potrs(cS, _identity(m), lower=1)
+        Sinv, info = _potrs(cS, np.eye(m), lower=1)
         Sinv = 0.5 * (Sinv + Sinv.T)
         K = U @ Sinv  # (N, m)
         e = y[ok] - h
