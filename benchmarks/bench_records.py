@@ -7,8 +7,8 @@ apart, and, for reference, the whole console command (a new process: imports and
 2 s, come on top of both).
 
 Records: the tunnel stand-in (steady, 300 Hz, 4.6 s) and its first 1.5 s; its calibration record
-(a release, 300 Hz, 0.5 s); an L1 protocol record on FvK truth (1 kHz, 1 s, written here from
-:func:`wingopt.workflows.protocols.simulate_case`, 1 % noise); and two records the model does not
+(a release, 300 Hz, 0.5 s); the protocol's records L1, L2, L3 and LE on FvK truth (1 kHz, 1 s,
+written here from :func:`wingopt.workflows.protocols.simulate_case`, 1 % noise); and two records the model does not
 fit: the stand-in with two sensors' columns swapped, and white noise at the stand-in's level. Each
 line gives CPU s, CPU s per second of data, the lift, the run's status and its first warning::
 
@@ -33,6 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "examples" / "data"
 BUDGET = 2.0  # CPU s per s of data
 SENSORS = ("S1", "S2", "S3", "S4")
+PROTOCOL = ("L1", "L2", "L3", "LE")
 
 
 def _write(path: Path, t: np.ndarray, values: np.ndarray, note: str) -> Path:
@@ -54,13 +55,16 @@ def records(tmp: Path) -> dict[str, Path]:
     swapped = tunnel.values[:, [0, 2, 1, 3]]
     rng = np.random.default_rng(0)
     noise = np.abs(rng.normal(0.0, np.nanstd(tunnel.values), tunnel.values.shape))
-    case = simulate_case(problem, "L1", 0.01, 0, (49, 25), 1.0, truth="fvk")
-    m = case.measurements
+    protocol = {}
+    for load in PROTOCOL:
+        m = simulate_case(problem, load, 0.01, 0, (49, 25), 1.0, truth="fvk").measurements
+        path = _write(tmp / f"{load.lower()}.csv", m.t, m.values, f"{load} FvK 49x25, 1 % noise")
+        protocol[f"{load} protocol, FvK truth (1 kHz)"] = path
     return {
         "tunnel stand-in (steady, 300 Hz)": DATA / "tunnel_300Hz.csv",
         "tunnel stand-in, first 1.5 s": _write(tmp / "first.csv", tunnel.t[:n15], tunnel.values[:n15], "first 1.5 s"),
         "calibration release (300 Hz)": DATA / "tunnel_calibration_300Hz.csv",
-        "L1 protocol, FvK truth (1 kHz)": _write(tmp / "l1.csv", m.t, m.values, "L1 FvK 49x25, 1 % noise"),
+        **protocol,
         "misfit: S2 and S3 swapped": _write(tmp / "swapped.csv", tunnel.t, swapped, "columns swapped"),
         "misfit: white noise": _write(tmp / "noise.csv", tunnel.t, noise, "white noise"),
     }

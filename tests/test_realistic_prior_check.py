@@ -95,3 +95,26 @@ def test_the_evidence_tells_whether_the_pressure_reaches_the_frame(problem_model
         assert abs(err) < 0.03 * case.true_lift and res.load_space is None
     else:
         assert abs(err) < 0.06 * case.true_lift and res.load_space is not None  # the free-edge load basis
+
+
+def test_a_budget_that_ends_the_check_widens_the_band_and_compares_only_finished_fits(problem_model):
+    """A work budget (``max_total_iter``) that ends the prior check mid-ladder: the x10 fit is cut after
+    its first iteration. Before, its evidence at that unfinished point was compared, lost, and the
+    check 'kept' x3 as the data's choice with x3's band (L3 on 49x25 truth, budget 40: 0.627 ± 0.024 N
+    against 0.794 N). Now the ladder stops there, keeps the best finished fit, takes the scales not
+    fitted from the last fit's Gauss-Newton model into the band, and the run is not converged."""
+    problem, model = problem_model
+    case = simulate_case(problem, "L3", 0.01, 0, (33, 17), 0.5, truth="fvk", tell_noise=False)
+    settings = RealisticSettings(membrane_model="fvk", frame="off", max_total_iter=65)
+    res = realistic_identify(model, case.measurements, settings)
+    lp = res.info["load_prior"]
+    assert lp["cut"].startswith("the work budget ended the check (x10 stopped after 1 iterations)")
+    assert lp["kept"] == "3" and "log_evidence" not in lp["scales"]["10"]  # only finished fits compete
+    assert {"linearized_lift", "linearized_std"} <= set(lp["scales"]["30"])
+    # the linearised scales widen it
+    assert lp["lift_spread"] > abs(lp["scales"]["3"]["lift"] - lp["scales"]["1"]["lift"])
+    assert res.lift_std[-1] >= lp["lift_spread"]
+    assert res.info["converged"] is False and str(res.status) == "not_converged"
+    assert any("the work budget ended the check" in w for w in res.info["warnings"])
+    # measured: 0.629 ± 0.069 N against the unlimited run's 0.734 (1.5 bands) and the truth 0.794 (2.4)
+    assert abs(res.lift[-1] - case.true_lift) < 2.5 * res.lift_std[-1]

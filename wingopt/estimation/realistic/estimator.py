@@ -160,6 +160,7 @@ def realistic_identify(
     res.info["budget"] = {"iterations": budget.used, "max_total_iter": s.max_total_iter, "cpu_s": budget.spent,
                           "exhausted": budget.exhausted, "not_fitted": skipped}  # fmt: skip
     if budget.exhausted:
+        res.info["converged"] = False  # the work was not finished, whichever fit was kept
         res.info["warnings"].append(
             f"stopped at the record's work budget ({budget.used} Levenberg-Marquardt iterations over all fits, "
             f"max_total_iter {s.max_total_iter}; {budget.spent:.1f} s CPU): a record this model explains poorly"
@@ -226,7 +227,24 @@ def _finish(rp, fit, fits, chosen, ad, sigma, noise_source, t0, s, bubble_known,
         # Sign-blind sensors: state and load flip together; the prior load's sign decides.
         fit = dataclasses.replace(fit, theta=_flip(rp, fit.theta))
     res = _result(rp, fit, fits, chosen, ad, sigma, noise_source, time.perf_counter() - t0, s, spread, prior_info)
+    if fit.out_of_budget:
+        res = _cut_short(res, rp, fit)
     return _with_tension_profile(res, rp, fit, ad, fit_), fit
+
+
+def _cut_short(res: IdentificationResult, rp: RecordProblem, fit: Fit) -> IdentificationResult:
+    """A fit the work budget stopped: its band widened by ``sqrt(1 + decrement)`` at its last point
+    (as a stall's: the local model's minimum is within ``sqrt(decrement)`` posterior sigma)."""
+    R = rp.prior_matrix
+    g = fit.data_jacobian.T @ fit.residuals + R.T @ (R @ fit.theta)
+    dec = float(g @ np.linalg.solve(fit.precision, g))
+    widen = float(np.sqrt(1.0 + dec))
+    res.info["budget_widening"] = widen
+    res.info["warnings"].append(
+        f"the work budget stopped the fit {dec:.3g} chi-square units short of its local model's minimum: "
+        f"band widened x{widen:.2f}"
+    )
+    return dataclasses.replace(res, lift_std=res.lift_std * widen)
 
 
 def _with_tension_profile(res: IdentificationResult, rp: RecordProblem, fit: Fit, ad, fit_) -> IdentificationResult:
@@ -308,6 +326,7 @@ def _result(rp, fit: Fit, fits, chosen, ad, sigma, noise_source, wall, s, spread
             f"load outside its prior (chi-square {prior_info['load_chi2']:.0f} over {prior_info['shapes']} shapes > "
             f"{prior_info['threshold']:.0f}): refitted with wider load priors, kept x{prior_info['kept']} "
             f"(largest evidence); the lift depends on the prior by {prior_info['lift_spread']:.3g} N, added to the band"
+            + (f" ({prior_info['cut']})" if "cut" in prior_info else "")
         )
     name = f"FvK cubic, {bm.cubic_modes} modes" if fvk else "Berger"
     info = {
