@@ -46,7 +46,7 @@ if TYPE_CHECKING:
     from wingopt.estimation.realistic.record_problem import RecordProblem
     from wingopt.estimation.realistic.solver import Fit
 
-__all__ = ["LEVEL", "SCALES", "load_prior_check", "linearized_lift"]
+__all__ = ["LEVEL", "SCALES", "load_prior_check", "linearized_lift", "conflict_test"]
 
 log = logging.getLogger(__name__)
 
@@ -91,8 +91,21 @@ def linearized_lift(rp: RecordProblem, fit: Fit, factor: float) -> tuple[np.ndar
     return lift, float(np.sqrt(grad @ np.linalg.solve(H, grad)))
 
 
+def conflict_test(rp: RecordProblem, fit: Fit) -> dict:
+    """``conflict`` (the fitted load's chi-square under its prior above the ``1 - LEVEL`` quantile),
+    ``load_chi2``, ``threshold`` and the number of ``shapes``."""
+    sl = rp.slices["c"]
+    n = sl.stop - sl.start
+    chi2 = float(fit.theta[sl] @ fit.theta[sl])
+    threshold = float(chi2_ppf(1.0 - LEVEL, n))
+    return {"conflict": chi2 > threshold, "load_chi2": chi2, "threshold": threshold, "shapes": n}
+
+
 def load_prior_check(
-    rp: RecordProblem, fit: Fit, refit: Callable[[RecordProblem, np.ndarray], Fit]
+    rp: RecordProblem,
+    fit: Fit,
+    refit: Callable[[RecordProblem, np.ndarray], Fit],
+    resolved: str | None = None,
 ) -> tuple[RecordProblem, Fit, np.ndarray | None, dict]:
     """Test ``fit`` of ``rp`` for a load-prior conflict; on one, refit with a wider prior.
 
@@ -101,6 +114,9 @@ def load_prior_check(
     rp : RecordProblem
     fit : Fit
     refit : callable ``(RecordProblem, theta0) -> Fit``
+    resolved : str, optional
+        How a conflict was already resolved elsewhere (the frame prior explains the record without
+        one, decisively): the conflict is reported with this (``info["resolved"]``) and not refitted.
 
     Returns
     -------
@@ -113,11 +129,12 @@ def load_prior_check(
         lifts and the kept scale.
     """
     sl = rp.slices["c"]
-    n = sl.stop - sl.start
-    chi2 = float(fit.theta[sl] @ fit.theta[sl])
-    threshold = float(chi2_ppf(1.0 - LEVEL, n))
-    info = {"conflict": chi2 > threshold, "load_chi2": chi2, "threshold": threshold, "shapes": n}
+    info = conflict_test(rp, fit)
+    chi2 = info["load_chi2"]
     if not info["conflict"]:
+        return rp, fit, None, info
+    if resolved is not None:
+        info["resolved"] = resolved
         return rp, fit, None, info
     z = _evidence(fit)
     lift = _lift(rp, fit.theta)

@@ -68,7 +68,8 @@ class RealisticSettings:
         (the main fit; the alternatives: linear membrane, gust, frame prior; the prior check's and
         the tension profile's refits). Measured (FvK truth, 1 s at 1 kHz) before the early stops and
         the short start (:mod:`.stopping`, :func:`.start.short_start`): L2 25, LE 17, L1 51, L3 143
-        (its prior check and frame prior); 4.6 s of white noise 80. With them L1 takes 3. The fits stop there, the
+        (its prior check and frame prior; 35 since the frame prior resolves its conflict first,
+        :mod:`.frame_check`); 4.6 s of white noise 80. With them L1 takes 3. The fits stop there, the
         alternatives left are named, and the result says so (``info["budget"]``, a warning).
     stop_early : bool
         Stop a fit that stalls far from converging, and the frame prior's fit once the evidence has
