@@ -23,7 +23,8 @@ fitted are taken from the Gauss–Newton model of the last fit (:func:`linearize
 and lift of the linearised problem under the wider prior, no new integration). The band then spans
 the lifts of every scale, fitted or linearised (each with its linearised standard deviation), so a
 budget that stops the check early widens the band instead of keeping the file's prior's.
-Measured on L3 (FvK truth 49x25, 1 s; true lift 0.794 N) with ``max_total_iter`` 40 / 60: before,
+Measured on L3 (FvK truth 49x25, 1 s; true lift 0.794 N; the ladder alone, ``frame="off"``) with
+``max_total_iter`` 40 / 60: before,
 0.627 ± 0.024 / 0.704 ± 0.099 N; now 0.609 ± 0.054 / 0.628 ± 0.147 N. The linearisation
 under-reaches on a load this far outside the prior (x10 linearised from x3: 0.65 N, fitted: 0.70 N),
 so a budget that ends the check in its first wider fit still leaves the truth 3-4 bands away; the
