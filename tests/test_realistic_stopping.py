@@ -84,7 +84,14 @@ def test_a_record_the_model_fits_keeps_its_answer(fvk_short_record):
     model, meas = fvk_short_record
     full = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk", stop_early=False))
     fast = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk"))
-    assert float(fast.lift[-1]) == float(full.lift[-1]) and float(fast.lift_std[-1]) == float(full.lift_std[-1])
+    assert float(fast.lift[-1]) == float(full.lift[-1])
+    # the band holds the frame prior's lift (frame_check.span_other): the finished fit's when it runs to
+    # the end, one Gauss-Newton step from where a decided fit stopped otherwise (measured here 0.0744
+    # against 0.0615 N); without that term the two bands are the same to the last digit
+    spread = [r.info["frame_check"].get("lift_spread", 0.0) for r in (fast, full)]
+    own = [np.sqrt(float(r.lift_std[-1]) ** 2 - d**2) for r, d in zip((fast, full), spread)]
+    assert own[0] == pytest.approx(own[1], rel=1e-9)
+    assert float(fast.lift_std[-1]) == pytest.approx(float(full.lift_std[-1]), rel=0.25)
     assert fast.info["converged"] == full.info["converged"]
     assert fast.info["budget"]["iterations"] <= full.info["budget"]["iterations"]
     fc = fast.info["frame_check"]

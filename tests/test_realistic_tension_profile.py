@@ -51,7 +51,9 @@ def test_a_record_without_a_transient_has_its_band_checked_by_the_lifts_profile(
     tp = res.info["tension_profile"]
     assert res.info["converged"] and tp["ratio"] > TRIGGER and tp["computed"]
     lift = float(res.lift[-1])
-    band = float(res.lift_std[-1]) / (tp["widening"] if tp["applied"] else 1.0)  # the Laplace band
+    # the Laplace band: the reported one without the frame prior's lift (frame_check.span_other) and the widening
+    total, frame = float(res.lift_std[-1]), res.info["frame_check"].get("lift_spread", 0.0)
+    band = np.sqrt(total**2 - frame**2) / (tp["widening"] if tp["applied"] else 1.0)
     # the refits hold the lift exactly at the band's ends, and cost more than the optimum
     assert tp["lifts_N"] == pytest.approx([lift - band, lift + band], rel=1e-9)
     assert all(0 < r < 3 for r in tp["cost_rises"])

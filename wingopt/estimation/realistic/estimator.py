@@ -27,7 +27,16 @@ import numpy as np
 from wingopt.errors import InputError
 from wingopt.estimation.noise import resolve_noise_std
 from wingopt.estimation.realistic.adequacy import assess
-from wingopt.estimation.realistic.frame_check import FRAME_SHAPES, embed, frame_shapes, log_evidence, weigh
+from wingopt.estimation.realistic.frame_check import (
+    FRAME_SHAPES,
+    decided,
+    embed,
+    extrapolated,
+    frame_shapes,
+    log_evidence,
+    span_other,
+    weigh,
+)
 from wingopt.estimation.realistic.load_model import LoadShapes
 from wingopt.estimation.realistic.model_form import PRESTRAIN_MODEL_FORM_REL, prestrain_std_with_model_form
 from wingopt.estimation.realistic.prior_check import conflict_test, load_prior_check
@@ -157,14 +166,16 @@ def realistic_identify(
             rf, fit_f = frame_first
         stop_f = stops.get(id(fit_f), (None,))[0]
         if stop_f is not None and stop_f.reason.startswith("decided"):
-            res.info["frame_check"] = _decided(z, stop_f)
+            res.info["frame_check"] = decided(z, stop_f)
+            lift_f, chi2_f = extrapolated(rf, stop_f.last)
+            res = span_other(res, lift_f, fit.data_cost, chi2_f, "frame")
         else:
             ad_f = assess(meas.t, _residual_matrix(rf, fit_f), fit_f.effective_parameters, s.segment_s)
             res_f, fit_f = _finish(rf, fit_f, {chosen: fit_f}, chosen, ad_f, sigma, noise_source, t0, s, bubble_known,
                                    p0, fit_)  # fmt: skip
             if stop_f is not None:
                 res_f = _stalled(res_f, fit_f, stop_f)
-            res = weigh(res, res_f, z, log_evidence(fit_f), _frame_note)
+            res = weigh(res, res_f, z, log_evidence(fit_f), (fit.data_cost, fit_f.data_cost))
     res.info["membrane_selection"] = selection
     res.info["budget"] = {"iterations": budget.used, "max_total_iter": s.max_total_iter, "cpu_s": budget.spent,
                           "exhausted": budget.exhausted, "not_fitted": skipped}  # fmt: skip
@@ -205,25 +216,6 @@ def _stalled(res: IdentificationResult, fit: Fit, w: EarlyStop) -> Identificatio
         f"the fit {reason}: stopped after {fit.iterations} iterations, not converged; band widened x{widen:.2f}"
     )
     return dataclasses.replace(res, lift_std=res.lift_std * widen)
-
-
-def _decided(z_interior: float, w: EarlyStop) -> dict:
-    """``info["frame_check"]`` when the frame prior's fit stopped decided (:func:`.stopping.behind`):
-    its log-evidence and weight are upper bounds (``"bound": True``)."""
-    return {
-        "log_evidence": {"interior": z_interior, "frame": w.reach},
-        "weight_frame": float(np.exp(min(w.reach - z_interior, 0.0))),
-        "bound": True,
-        "used": "interior",
-        "frame_fit": f"stopped after {len(w.costs) - 1} iterations, {w.reason}",
-    }
-
-
-def _frame_note(w_interior: float, w_frame: float) -> str:
-    return (
-        f"the sensors do not tell whether the pressure reaches the frame (evidence: {w_interior:.0%} a load that "
-        f"vanishes there, {w_frame:.0%} one that acts up to it): the lift and its band mix the two"
-    )
 
 
 def _frame_first(rp, fit, model, shapes, s, p0, fit_) -> tuple[tuple[RecordProblem, Fit], str | None]:

@@ -63,13 +63,15 @@ class Fit:
 class Iterate:
     """An iterate of :func:`levenberg_marquardt` as its monitor sees it: ``index`` (0 the start),
     ``theta``, the chi-square ``cost``, the Newton ``decrement`` ``g^T H^-1 g`` (what one undamped
-    Gauss–Newton step would remove) and the Gauss–Newton matrix ``precision``."""
+    Gauss–Newton step would remove), the Gauss–Newton matrix ``precision`` and the cost's half
+    ``gradient`` ``g`` (the undamped step is ``-H^-1 g``)."""
 
     index: int
     theta: np.ndarray
     cost: float
     decrement: float
     precision: np.ndarray
+    gradient: np.ndarray | None = None
 
     @property
     def log_evidence(self) -> float:
@@ -147,7 +149,7 @@ def levenberg_marquardt(
         if it >= max_iter or (budget is not None and budget.exhausted):
             break
         if monitor is not None:
-            stopped = monitor(Iterate(it, theta, f, decrement, H))
+            stopped = monitor(Iterate(it, theta, f, decrement, H, g))
             if stopped is not None:
                 log.debug("LM: stopped by its monitor after %d iterations: %s", it, stopped)
                 break
