@@ -97,7 +97,10 @@ PRESSURE_PRIORS = ("auto", "interior", "frame", "aerodynamic")
 """Where the pressure may act: ``interior`` (zero on the frame, the seed's loads), ``frame`` (up to
 the frame: smooth interior shapes plus free-edge ones), ``aerodynamic`` (thin-airfoil shapes from
 the leading edge: an assumption that narrows a steady record's band), ``auto`` (a transient record
-weighs interior and frame by evidence; a steady record weighs frame and aerodynamic)."""
+weighs interior and frame by evidence, and its band holds the other prior's lift when the data do
+not reject it: four interior sensors cannot tell whether the pressure reaches the frame; a steady
+record weighs frame and aerodynamic). ``interior`` declares a load that vanishes on the frame and
+keeps that prior's narrower band (L1: ±1.9 % against ±11 % under ``auto``)."""
 
 
 @dataclass(frozen=True)
