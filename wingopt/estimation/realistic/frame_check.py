@@ -127,10 +127,10 @@ def span_other(
         return res
     spread = np.abs(np.asarray(lift_other, float) - res.lift)
     fc["lift_spread"] = float(spread[-1])
-    where = "reaches the frame" if other == "frame" else "vanishes on the frame"
+    where = "reaches" if other == "frame" else "vanishes on"
     note = (
-        f"the sensors do not tell whether the pressure {'reaches' if other == 'frame' else 'vanishes on'} the frame: "
-        f"the {other} prior (a load that {where}) fits the data as well (chi-square {chi2_other:.1f} against "
+        f"the sensors do not tell whether the pressure {where} the frame: "
+        f"the {other} prior (a load that {where} the frame) fits the data as well (chi-square {chi2_other:.1f} against "
         f"{chi2_used:.1f}) with a lift of {float(lift_other[-1]):.4g} N; the evidence's preference is the edge "
         f"shapes' prior volume, not the data, so the difference ({fc['lift_spread']:.3g} N) is added to the band"
     )
@@ -147,9 +147,8 @@ def extrapolated(rp, it) -> tuple[np.ndarray, float]:
     finished 0.784; seed 1 0.766 / 0.770; L1 0.871 / 0.854; LE seed 1 0.640 / 0.624; L1 at 5 %
     noise 0.817 / 0.794), where the stopped iterate's lift is the start's (0.722 for 0.784)."""
     theta = it.theta if it.gradient is None else it.theta - np.linalg.solve(it.precision, it.gradient)
-    c, amp = rp.load_history(theta)
     rd, _ = rp.residuals(it.theta)
-    return amp * float(rp.shapes.lift_row @ c), float(rd @ rd)
+    return rp.lift(theta), float(rd @ rd)
 
 
 def decided(z_interior: float, w) -> dict:

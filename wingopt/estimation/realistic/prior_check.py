@@ -62,11 +62,6 @@ def _evidence(fit) -> float:
     return float(-0.5 * fit.cost - 0.5 * np.linalg.slogdet(fit.precision)[1])
 
 
-def _lift(rp, theta) -> np.ndarray:
-    c, amp = rp.load_history(theta)
-    return amp * float(rp.shapes.lift_row @ c)
-
-
 def _widened(rp: RecordProblem, factor: float) -> RecordProblem:
     return dataclasses.replace(rp, shapes=dataclasses.replace(rp.shapes, prior_std=factor * rp.shapes.prior_std))
 
@@ -86,7 +81,7 @@ def linearized_lift(rp: RecordProblem, fit: Fit, factor: float) -> tuple[np.ndar
     g = J.T @ fit.residuals + R.T @ (R @ theta0)
     wide = _widened(rp, factor)
     theta = theta0 - np.linalg.solve(H, g)
-    lift = _lift(wide, theta)
+    lift = wide.lift(theta)
     grad = np.zeros(rp.dim)  # d lift[-1] / d theta on the shape coefficients (the gust amplitude held)
     grad[sl] = wide.load_history(theta)[1][-1] * wide.shapes.lift_row * wide.shapes.prior_std
     return lift, float(np.sqrt(grad @ np.linalg.solve(H, grad)))
@@ -138,7 +133,7 @@ def load_prior_check(
         info["resolved"] = resolved
         return rp, fit, None, info
     z = _evidence(fit)
-    lift = _lift(rp, fit.theta)
+    lift = rp.lift(fit.theta)
     info["scales"] = {"1": {"log_evidence": z, "lift": float(lift[-1]), "load_chi2": chi2}}
     best = (z, 1.0, rp, fit, lift)
     prev_scale, theta = 1.0, fit.theta
@@ -150,7 +145,7 @@ def load_prior_check(
         theta0[sl] *= prev_scale / scale
         fit_w = refit(wide, theta0)
         if fit_w.out_of_budget:
-            info["cut"] = _cut(SCALES[k:], fit_w, wide, scale, last, info)
+            info["cut"] = _cut(SCALES[k:], fit_w, wide, scale, info)
             if fit_w.iterations:
                 last = (wide, fit_w, scale)
             for s_lin in SCALES[k:]:
@@ -159,7 +154,7 @@ def load_prior_check(
                 entry.update(linearized_lift=float(lin[-1]), linearized_std=lin_std)
                 spread = np.maximum(spread, np.sqrt((lin - lift) ** 2 + lin_std**2))
             break
-        z_w, lift_w = _evidence(fit_w), _lift(wide, fit_w.theta)
+        z_w, lift_w = _evidence(fit_w), wide.lift(fit_w.theta)
         info["scales"][f"{scale:g}"] = {
             "log_evidence": z_w,
             "lift": float(lift_w[-1]),
@@ -177,11 +172,11 @@ def load_prior_check(
     return rp_k, fit_k, spread, info
 
 
-def _cut(untried, fit_w, wide, scale, last, info) -> str:
+def _cut(untried, fit_w, wide, scale, info) -> str:
     """``info["cut"]``: which scales the budget left unfitted (their lifts linearised from the last fit)."""
     names = ", ".join(f"x{s:g}" for s in untried)
     what = f"x{scale:g} stopped after {fit_w.iterations} iterations" if fit_w.iterations else f"x{scale:g} not started"
     log.info("load prior check cut by the work budget (%s): %s linearised", what, names)
     if fit_w.iterations:  # a partial fit: its point, not its evidence, is kept for the record
-        info["scales"][f"{scale:g}"] = {"lift": float(_lift(wide, fit_w.theta)[-1]), "iterations": fit_w.iterations}
+        info["scales"][f"{scale:g}"] = {"lift": float(wide.lift(fit_w.theta)[-1]), "iterations": fit_w.iterations}
     return f"the work budget ended the check ({what}): {names} linearised from the last fit"

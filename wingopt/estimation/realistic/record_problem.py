@@ -277,3 +277,8 @@ class RecordProblem:
         """Shape coefficients ``c`` and amplitude ``1 + g(t_k)`` ``(N,)``."""
         ph = self.physical(np.asarray(theta, float))
         return ph["c"][0], self.amplitude(ph["g"])[:, 0]
+
+    def lift(self, theta: np.ndarray) -> np.ndarray:
+        """Lift history ``(N,)`` of the unknowns ``theta``: the shapes' lift times the amplitude."""
+        c, amp = self.load_history(theta)
+        return amp * float(self.shapes.lift_row @ c)
