@@ -29,12 +29,12 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
+from wingopt.estimation.mhe import mhe_identify  # noqa: E402
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify  # noqa: E402
 from wingopt.estimation.realistic import estimator as est_mod  # noqa: E402
 from wingopt.membrane import MembraneModel  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
 from wingopt.workflows.protocols import simulate_case  # noqa: E402
-from wingopt.workflows.studies import run_method  # noqa: E402
 
 TRUTH_SUBSTEPS = {"fvk": 2, "berger": 8}
 """Integration sub-steps per sample of the truth (as the retired ``fvk_case`` / ``berger_case``)."""
@@ -88,7 +88,7 @@ def main(argv=None) -> None:
         rp.residuals(np.zeros(rp.dim))
         resid = time.process_time() - c0
     c0, w0 = time.process_time(), time.perf_counter()
-    run_method("mhe", model, meas)
+    mhe_identify(model, meas)
     mhe_cpu, mhe_wall = time.process_time() - c0, time.perf_counter() - w0
     fits = res.info.get("fits", {})
     its = sum(f.get("iterations", 0) for f in fits.values())

@@ -36,14 +36,16 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify  # noqa: E402
-from wingopt.estimation.realistic.mhe_check import check_mhe_result  # noqa: E402
-from wingopt.estimation.runners import model_form_band  # noqa: E402
+from wingopt.estimation.registry import resolve  # noqa: E402
+from wingopt.estimation.runners import (
+    run_record,  # noqa: E402
+)
 from wingopt.fe import integrate  # noqa: E402
 from wingopt.membrane import Gust, MembraneModel, add_noise  # noqa: E402
 from wingopt.membrane.modal.berger import BergerModal  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
 from wingopt.workflows.protocols import simulate_case  # noqa: E402
-from wingopt.workflows.studies import load_field, run_method  # noqa: E402
+from wingopt.workflows.studies import load_field  # noqa: E402
 
 GUST = Gust(start=0.4, duration=0.2, amplitude=0.3)
 SPLIT = {"unequal": True}
@@ -83,12 +85,8 @@ def run(load, truth, pf, damping, noise, seed, estimator, settings, model) -> di
     c0 = time.process_time()
     if estimator == "realistic":
         res = realistic_identify(model, meas, settings)
-    elif estimator == "mhe":  # as `wingopt identify --model linear`: the check, and the model-form term if flagged
-        res = check_mhe_result(model, meas, run_method("mhe", model, meas))
-        if res.info.get("model_adequate") is False:
-            res = model_form_band(model, meas, res, None)
-    else:  # jekf-tuned: the dissertation's filter, lambda from the data (jekf-seed needs the truth)
-        res = run_method(estimator, model, meas)
+    else:  # as `wingopt identify --model linear`: the MHE's check and model-form term, or the tuned JEKF
+        res = run_record(resolve(estimator, "linear"), model, meas)
     cpu = time.process_time() - c0
     lift = rec.lift_history  # the true lift at every sample (gust included)
     lt = float(lift[-1])

@@ -54,12 +54,12 @@ def test_identify_simulated_writes_the_contract(small_file, tmp_path, capsys):
     assert summary["lift_N"] == pytest.approx(summary["true_lift_N"], rel=0.03)
     with open(out / "load.csv") as fh:
         rows = list(csv.reader(fh))
-    assert rows[0] == ["x", "y", "pressure_Pa"] and len(rows) == 1 + 57 * 29
+    assert rows[0] == ["x", "y", "pressure_Pa", "pressure_std_Pa"] and len(rows) == 1 + 57 * 29
     xy = np.array(rows[1:], dtype=float)
     assert xy[:, 0].min() == 0 and xy[:, 0].max() == pytest.approx(0.14) and xy[:, 1].max() == pytest.approx(0.07)
     with open(out / "lift.csv") as fh:
         lift = list(csv.reader(fh))
-    assert lift[0] == ["t", "lift_N", "lift_std_N"] and len(lift) == 1 + 301
+    assert lift[0] == ["t", "lift_N", "lift_std_N", "reported_lift_N", "reported_lift_std_N"] and len(lift) == 1 + 301
     for png in ("load_field.png", "lift.png", "errors.png"):
         assert (out / png).stat().st_size > 1000
 
@@ -286,10 +286,12 @@ def test_state_prior_option():
     from wingopt.errors import InputError
     from wingopt.estimation.mhe import STATE_PRIOR_EVIDENCE
     from wingopt.estimation.options import IdentifyOptions
-    from wingopt.estimation.runners import mhe_settings
+    from wingopt.estimation.registry import resolve
+    from wingopt.estimation.runners import settings_for
 
-    assert mhe_settings(IdentifyOptions(state_prior="evidence")).state_prior_choices == STATE_PRIOR_EVIDENCE
-    assert mhe_settings(IdentifyOptions(state_prior="0.01")).state_prior == 0.01
+    mhe = resolve("mhe")
+    assert settings_for(mhe, IdentifyOptions(state_prior="evidence")).state_prior_choices == STATE_PRIOR_EVIDENCE
+    assert settings_for(mhe, IdentifyOptions(state_prior="0.01")).state_prior == 0.01
     for bad in ("-1", "tight", "nan"):
         with pytest.raises(InputError, match="state_prior"):
             IdentifyOptions(state_prior=bad)

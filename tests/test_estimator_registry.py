@@ -18,7 +18,7 @@ from wingopt.cli import main
 from wingopt.errors import InputError
 from wingopt.estimation.options import OPTION_FLAGS, IdentifyOptions
 from wingopt.estimation.registry import REGISTRY, check_options, resolve
-from wingopt.estimation.runners import batch_settings, build, ekf_settings, fullfield_settings, mhe_settings
+from wingopt.estimation.runners import build, settings_for
 from wingopt.membrane import MembraneModel
 from wingopt.problem import load_problem
 from wingopt.values import LambdaChoice
@@ -73,15 +73,7 @@ def tiny_misfit():
 
 def _settings(spec, opts):
     """What a pair runs with, for the options that are settings."""
-    if spec.method == "mhe":
-        return mhe_settings(opts)
-    if spec.method == "batch":
-        return batch_settings(spec, opts)
-    if spec.method == "ekf":
-        return ekf_settings(spec, opts)
-    if spec.method == "fullfield":
-        return fullfield_settings(opts)
-    return None
+    return None if spec.method.startswith("jekf") else settings_for(spec, opts)
 
 
 @pytest.mark.parametrize("key", sorted(REGISTRY), ids=lambda k: f"{k[0]}-{k[1]}-{'stream' if k[2] else 'record'}")

@@ -13,13 +13,14 @@ import functools
 import numpy as np
 import pytest
 
+from wingopt.estimation.mhe import mhe_identify
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify
 from wingopt.estimation.realistic.mhe_check import check_mhe_result
 from wingopt.membrane import MembraneModel, add_noise
 from wingopt.membrane.loads import Gust
 from wingopt.problem import load_problem
 from wingopt.workflows.protocols import simulate_case
-from wingopt.workflows.studies import load_field, run_method
+from wingopt.workflows.studies import load_field
 
 pytestmark = pytest.mark.slow
 
@@ -46,7 +47,7 @@ def _run(load, seed=0, noise=0.01, estimator="realistic", settings=None, **truth
     if estimator == "realistic":
         res = realistic_identify(model, meas, settings)
     else:
-        res = check_mhe_result(model, meas, run_method("mhe", model, meas))
+        res = check_mhe_result(model, meas, mhe_identify(model, meas))
     lift_err = (res.lift[-1] - clean.lift_history[-1]) / clean.true_absolute_load
     return clean, res, float(lift_err), clean.load_error(load_field(res, model))
 

@@ -18,8 +18,11 @@ from threadpoolctl import threadpool_limits
 
 from wingopt.cli import main
 from wingopt.errors import InputError
+from wingopt.estimation.options import IdentifyOptions
+from wingopt.estimation.registry import resolve
+from wingopt.estimation.runners import run_record
 from wingopt.workflows.protocols import simulate_case
-from wingopt.workflows.studies import evaluate, protocol_sign, run_method
+from wingopt.workflows.studies import evaluate, protocol_sign
 from wingopt.workflows.sweep.engine import Engine, EngineSettings, SweepTask, blas_threads
 from wingopt.workflows.sweep.records import TIMING_FIELDS, RecordLog, by_key, read_records
 from wingopt.workflows.sweep.run import run_records, run_sweep, sweep_tasks
@@ -85,7 +88,7 @@ def test_serial_and_cluster_records_are_identical_and_match_the_direct_computati
     r2 = read_records(tmp_path / "cluster" / "records.jsonl")
     assert {r["pid"] for r in r2} - {os.getpid()}, "cluster records must come from worker processes"
     assert results_only(r1) == results_only(r2)  # identical numbers, to the last bit
-    # The pre-engine path (CleanCases + run_method + evaluate, as compare's fork pool ran it).
+    # The one way in: the registry's estimator on the same record, as identify --load runs it.
     run = spec.runs[0]
     case = simulate_case(
         run.truth_problem, "L1", 0.01, run.params["seed"], run.truth_nodes, run.t_end, tell_noise=False
@@ -93,7 +96,9 @@ def test_serial_and_cluster_records_are_identical_and_match_the_direct_computati
     from wingopt.membrane import MembraneModel
 
     model = MembraneModel.from_problem(run.problem)
-    res = run_method(run.params["method"], model, case.measurements, run.settings, protocol_sign("L1") * 200.0)
+    spec_ = resolve(run.params["method"], simulated="linear")
+    options = IdentifyOptions(initial_load=protocol_sign("L1") * 200.0)
+    res = run_record(spec_, model, case.measurements, options, truth=case, settings=run.settings)
     direct = evaluate(case, res, model, run.params["method"])
     mine = next(r for r in r1 if r["params"] == run.params)
     assert mine["load_error"] == direct.load_error and mine["lift"] == direct.lift

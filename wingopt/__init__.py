@@ -18,7 +18,13 @@ from __future__ import annotations
 
 import importlib
 
+from wingopt.cache_dir import use_user_cache
+
 __version__ = "0.1.0"
+
+# numba's compiled kernels go to the user's cache directory, never into the installed package
+# (issue 33): set before any wingopt module imports numba.
+use_user_cache()
 
 _LAZY = {
     "load_problem": "wingopt.problem",
@@ -32,6 +38,8 @@ _LAZY = {
     "calibrated_problem": "wingopt.workflows.calibrate",
     "read_measurements": "wingopt.measurements.csv_file",
     "run_demo": "wingopt.workflows.demo",
+    "plot_lift": "wingopt.plots.run",
+    "plot_field": "wingopt.plots.run",
 }
 
 __all__ = ["__version__", *_LAZY]

@@ -13,6 +13,7 @@ __all__ = [
     "ProblemFileError",
     "DataFileError",
     "OutputError",
+    "MissingExtraError",
     "SolverError",
     "RiccatiAccuracyError",
 ]
@@ -39,6 +40,10 @@ class DataFileError(InputError):
 
 class OutputError(InputError, OSError):
     """An output location that cannot be written."""
+
+
+class MissingExtraError(InputError, ImportError):
+    """An optional package is not installed (the message names the extra: ``pip install 'wingopt[data]'``)."""
 
 
 class SolverError(WingoptError, RuntimeError):

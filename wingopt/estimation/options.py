@@ -12,13 +12,23 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from wingopt.errors import InputError
 from wingopt.optim.registry import check_solver
 from wingopt.values import LambdaChoice
 
-__all__ = ["IdentifyOptions", "OPTION_FLAGS", "LOAD_MODELS", "parse_duration"]
+__all__ = [
+    "IdentifyOptions",
+    "OPTION_FLAGS",
+    "LOAD_MODELS",
+    "parse_duration",
+    "option",
+    "declared_options",
+    "apply_options",
+]
 
 LOAD_MODELS = ("auto", "constant", "varying")
 """How the load may change in time: ``constant`` (a steady load), ``varying`` (a load that follows
@@ -212,3 +222,49 @@ class IdentifyOptions:
         if both:
             raise InputError(f"{both[0]}: given both as an argument and in options; give it once")
         return opts.replace(**extra) if extra else opts
+
+
+_OPTION = "identify_option"
+
+
+def option(
+    name: str | None = None, convert: Callable[[Any], dict[str, Any]] | None = None, *, uses: tuple[str, ...] = ()
+) -> dict:
+    """Metadata of an estimator's settings field that the identification option ``name`` sets.
+
+    ``convert`` maps the option's value to the settings fields it sets (default: this field, to the
+    value itself). A field holding nested settings declares, with ``uses`` (and no ``name``), the
+    options of :class:`IdentifyOptions` that reach them: its own settings declare how. This is how
+    an estimator's settings dataclass says which options it takes: the registry derives every
+    estimator's options from it (:func:`declared_options`).
+    """
+    names = (*uses, *([name] if name else []))
+    if (name is None) == (not uses) or any(n not in OPTION_FLAGS for n in names):
+        raise ValueError(f"option({name!r}, uses={uses!r}): expected an IdentifyOptions field, or nested ones")
+    return {_OPTION: name, "convert": convert, "uses": tuple(uses)}
+
+
+def declared_options(settings_type: type) -> frozenset[str]:
+    """The :class:`IdentifyOptions` fields that the settings dataclass ``settings_type`` takes."""
+    out: set[str] = set()
+    for f in dataclasses.fields(settings_type):
+        if _OPTION in f.metadata:
+            out.update(f.metadata["uses"] or (f.metadata[_OPTION],))
+    return frozenset(out)
+
+
+def apply_options(settings, options: IdentifyOptions, only: tuple[str, ...] | None = None):
+    """``settings`` with the options it declares (those of ``options`` given; ``only``: these names) applied."""
+    changes: dict[str, Any] = {}
+    for f in dataclasses.fields(settings):
+        meta = f.metadata
+        if _OPTION not in meta:
+            continue
+        if meta["uses"]:
+            changes[f.name] = apply_options(getattr(settings, f.name), options, meta["uses"])
+            continue
+        value = getattr(options, meta[_OPTION])
+        if value is None or (only is not None and meta[_OPTION] not in only):
+            continue
+        changes.update(meta["convert"](value) if meta["convert"] else {f.name: value})
+    return dataclasses.replace(settings, **changes) if changes else settings

@@ -1,8 +1,10 @@
 """One registry of load estimators: which (estimator, membrane) pairs exist and what each one uses.
 
 Every estimator of the package is one row, :class:`EstimatorSpec`, keyed by its method, the
-membrane physics it assumes and whether it streams. A row says which options of
-:class:`~wingopt.estimation.options.IdentifyOptions` it uses and how it runs; :func:`check_options`
+membrane physics it assumes and whether it streams. A row names the estimator's settings
+dataclass, whose fields declare the options of
+:class:`~wingopt.estimation.options.IdentifyOptions` it takes (so the options are derived, not
+listed here); :func:`check_options`
 refuses, in one line, every option the chosen pair would ignore. No method or model name is
 written outside this module: the command line and the workflows ask it.
 
@@ -26,7 +28,12 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from wingopt.errors import InputError
-from wingopt.estimation.options import OPTION_FLAGS, IdentifyOptions
+from wingopt.estimation.fullfield.settings import FullFieldSettings
+from wingopt.estimation.jekf.settings import JEKFSettings
+from wingopt.estimation.mhe.settings import MHESettings
+from wingopt.estimation.options import OPTION_FLAGS, IdentifyOptions, declared_options
+from wingopt.estimation.realistic.settings import RealisticSettings
+from wingopt.estimation.streaming.types import NonlinearStreamSettings, StreamSettings
 
 __all__ = [
     "METHODS",
@@ -53,11 +60,8 @@ METHOD_ALIASES = {"jekf": "jekf-seed", "realistic": "batch"}
 MODEL_ALIASES = {"nonlinear": "berger"}
 """Older names still accepted (``--model nonlinear`` was the Berger membrane)."""
 
-_ALWAYS = frozenset({"noise_std", "initial_load"})
-_MHE = frozenset(
-    {"lam", "window", "stride", "solver", "qp_solver", "modes", "load_model", "load_timescale", "state_prior"}
-    | {"pressure_bounds", "load_space", "consistency", "model_form"}
-)
+_RECORD = frozenset({"noise_std", "initial_load"})
+"""Options every record and stream estimator takes beside its settings: the sensors' noise and the sign prior."""
 
 
 @dataclass(frozen=True)
@@ -70,10 +74,13 @@ class EstimatorSpec:
         Its method name and the membrane physics it assumes.
     stream : bool
         One estimate per sample (``push``) rather than a whole record.
-    options : frozenset of str
-        The :class:`IdentifyOptions` fields it uses (with ``noise_std`` and ``initial_load``).
+    settings : type
+        Its settings dataclass; the :class:`IdentifyOptions` it takes are the ones its fields
+        declare (:func:`~wingopt.estimation.options.option`).
     summary : str
         One line for ``--help`` and docs.
+    extra : frozenset of str
+        Options it takes beside its settings (the noise std, the sign prior, the MHE's FvK cross-check).
     requires : tuple of (option, predicate, reason)
         Options used only under a condition on the others (``qp_solver`` only with ``solver="cvxpy"``).
     """
@@ -81,9 +88,15 @@ class EstimatorSpec:
     method: str
     model: str
     stream: bool
-    options: frozenset[str]
+    settings: type
     summary: str
+    extra: frozenset[str] = _RECORD
     requires: tuple[tuple[str, Callable[[IdentifyOptions], bool], str], ...] = ()
+
+    @property
+    def options(self) -> frozenset[str]:
+        """The :class:`IdentifyOptions` fields it uses: its settings' declared ones and :attr:`extra`."""
+        return declared_options(self.settings) | self.extra
 
     @property
     def label(self) -> str:
@@ -108,29 +121,31 @@ REGISTRY: dict[tuple[str, str, bool], EstimatorSpec] = {
     (s.method, s.model, s.stream): s
     for s in (
         EstimatorSpec(
-            "mhe", "linear", False, _ALWAYS | _MHE, "moving-horizon Tikhonov, linear membrane", _MHE_REQUIRES
+            "mhe",
+            "linear",
+            False,
+            MHESettings,
+            "moving-horizon Tikhonov, linear membrane",
+            _RECORD | {"model_form"},
+            _MHE_REQUIRES,
         ),
         # the seed's filter: R = 1e-4 as the seed set it, so a noise level is not one of its options
-        EstimatorSpec(
-            "jekf-seed", "linear", False, frozenset({"initial_load", "lam", "modes"}), "the seed's joint EKF"
-        ),
-        EstimatorSpec("jekf-tuned", "linear", False, _ALWAYS | {"lam", "modes"}, "joint EKF, lambda from the data"),
-        EstimatorSpec("batch", "berger", False, _ALWAYS | {"modes", "load_model"}, "whole-record fit, Berger"),
-        EstimatorSpec("batch", "fvk", False, _ALWAYS | {"modes", "load_model"}, "whole-record fit, FvK membrane"),
+        EstimatorSpec("jekf-seed", "linear", False, JEKFSettings, "the seed's joint EKF", frozenset()),
+        EstimatorSpec("jekf-tuned", "linear", False, JEKFSettings, "joint EKF, lambda from the data"),
+        EstimatorSpec("batch", "berger", False, RealisticSettings, "whole-record fit, Berger"),
+        EstimatorSpec("batch", "fvk", False, RealisticSettings, "whole-record fit, FvK membrane"),
         EstimatorSpec(
             "mhe",
             "linear",
             True,
-            _ALWAYS | {"lam", "window", "modes", "state_prior", "load_space", "solver", "qp_solver"},
+            StreamSettings,
             "real-time iteration MHE, linear membrane",
-            _MHE_REQUIRES[:1],
+            requires=_MHE_REQUIRES[:1],
         ),
-        EstimatorSpec("ekf", "berger", True, _ALWAYS | {"modes"}, "extended Kalman filter, Berger membrane"),
-        EstimatorSpec("ekf", "fvk", True, _ALWAYS | {"modes"}, "extended Kalman filter, FvK membrane"),
+        EstimatorSpec("ekf", "berger", True, NonlinearStreamSettings, "extended Kalman filter, Berger membrane"),
+        EstimatorSpec("ekf", "fvk", True, NonlinearStreamSettings, "extended Kalman filter, FvK membrane"),
         # DIC frames: the noise is the frames' (from the fits), the sign is seen; initial_load is the prior's scale
-        EstimatorSpec(
-            "fullfield", "fvk", False, frozenset({"initial_load", "load_model"}), "DIC full field, FvK membrane"
-        ),
+        EstimatorSpec("fullfield", "fvk", False, FullFieldSettings, "DIC full field, FvK membrane", frozenset()),
     )
 }
 

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from wingopt.errors import MissingExtraError
 from wingopt.status import RunStatus, from_info
 
 __all__ = ["IdentificationResult", "Estimate"]
@@ -115,6 +116,27 @@ class IdentificationResult:
             f"samples={n}, t={self.t[0]:.4g}..{self.t[-1]:.4g} s, load coefficients={self.load.shape[-1]}, "
             f"lambda={self.regularization:.3g}, wall={self.wall_s:.3g} s)"
         )
+
+    def to_dataframe(self):
+        """The lift history with its 1-sigma band as a :class:`pandas.DataFrame`.
+
+        Index ``t`` (s); columns ``lift_N`` and, with a band, ``lift_std_N``, ``lift_lo_N``,
+        ``lift_hi_N``; ``attrs``: the reported lift and its band (``lift_N``, ``lift_std_N``), the
+        method and the units. Needs pandas (``pip install 'wingopt[data]'``).
+        """
+        try:
+            import pandas as pd  # optional: the data extra
+        except ImportError:
+            raise MissingExtraError("pandas is not installed: pip install 'wingopt[data]'") from None
+        lift = np.asarray(self.lift, dtype=float)
+        cols = {"lift_N": lift}
+        if self.lift_std is not None:
+            std = np.asarray(self.lift_std, dtype=float)
+            cols.update(lift_std_N=std, lift_lo_N=lift - std, lift_hi_N=lift + std)
+        df = pd.DataFrame(cols, index=pd.Index(np.asarray(self.t, dtype=float), name="t"))
+        reported, band = self.reported_lift if len(lift) else (float("nan"), None)
+        df.attrs.update(lift_N=reported, lift_std_N=band, method=self.method, units={"t": "s", "lift": "N"})
+        return df
 
     @property
     def final_load(self) -> np.ndarray:

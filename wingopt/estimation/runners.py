@@ -1,10 +1,12 @@
-"""Run the registry's estimators: options to settings, one record or one stream.
+"""Run the registry's estimators: settings from options, one record or one stream.
 
 :func:`run_record` runs a record estimator of :mod:`wingopt.estimation.registry` on
 :class:`~wingopt.measurements.Measurements`; :func:`build_stream` builds a streaming one (``push``
-one sample at a time). Settings are made from :class:`~wingopt.estimation.options.IdentifyOptions`
-here, once (:func:`mhe_settings`, :func:`batch_settings`, :func:`ekf_settings`); an explicit
-settings object replaces the defaults the options start from.
+one sample at a time); :func:`build` puts either behind the one protocol. An estimator's settings
+are made here, once, by :func:`settings_for`: its settings dataclass (the registry row's) with the
+options its fields declare applied; an explicit settings object replaces the defaults the options
+start from. Each method has one runner (:data:`RECORD_RUNNERS`, :data:`STREAM_BUILDERS`): no
+method name is compared anywhere else.
 """
 
 from __future__ import annotations
@@ -15,94 +17,96 @@ import logging
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.fullfield import FullFieldSettings, fullfield_identify
+from wingopt.estimation import jekf
+from wingopt.estimation.fullfield import fullfield_identify
 from wingopt.estimation.lambda_rules import resolve as resolve_rule
-from wingopt.estimation.mhe import STATE_PRIOR_EVIDENCE, MHESettings, mhe_identify
-from wingopt.estimation.options import IdentifyOptions
+from wingopt.estimation.mhe import mhe_identify
+from wingopt.estimation.options import IdentifyOptions, apply_options
 from wingopt.estimation.protocol import Estimator, RecordEstimator, StreamEstimator
 from wingopt.estimation.realistic import RealisticSettings, realistic_identify
 from wingopt.estimation.realistic.mhe_check import check_mhe_result
 from wingopt.estimation.registry import EstimatorSpec, check_options, resolve
 from wingopt.estimation.result import IdentificationResult
+from wingopt.estimation.streaming import StreamingEstimator
+from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator
+from wingopt.estimation.streaming.steady_refit import SteadyRefit
 from wingopt.measurements import Measurements
 from wingopt.membrane import MembraneModel
 
 __all__ = [
-    "mhe_settings",
-    "batch_settings",
-    "ekf_settings",
-    "fullfield_settings",
+    "settings_for",
+    "check_settings",
     "build",
     "run_record",
     "build_stream",
     "model_form_band",
+    "RECORD_RUNNERS",
+    "STREAM_BUILDERS",
 ]
 
 log = logging.getLogger(__name__)
 
 
-def mhe_settings(options: IdentifyOptions, base: MHESettings | None = None) -> MHESettings:
-    """The moving-horizon settings of ``options`` (on ``base``, default :class:`MHESettings`)."""
-    o, kw = options, {}
-    for name in ("window", "stride"):  # whole samples, or seconds
-        value = getattr(o, name)
-        if value is not None:
-            kw[name if isinstance(value, int) else f"{name}_s"] = value
-    if o.solver is not None:
-        kw["backend"] = o.solver
-    if o.qp_solver is not None:
-        kw["qp_solver"] = o.qp_solver
-    if o.modes is not None:
-        kw["modes"] = o.modes
-    if o.load_model is not None:
-        kw["load_model"] = "random_walk" if o.load_model == "varying" else "constant"
-    if o.load_timescale is not None:
-        kw["load_timescale"] = o.load_timescale
-    if o.state_prior == "evidence":
-        kw["state_prior_choices"] = STATE_PRIOR_EVIDENCE
-    elif o.state_prior is not None:
-        kw["state_prior"] = o.state_prior
-    if o.pressure_bounds is not None:
-        kw["pressure_bounds"] = o.pressure_bounds
-    if o.load_space is not None:
-        kw["load_space"] = o.load_space
-    if o.consistency is not None:
-        kw["consistency"] = o.consistency
-    if o.lam is not None:
-        if o.lam.is_fixed:
-            kw["regularization"] = o.lam.value
-        else:
-            kw.update(regularization=None, lambda_rule=resolve_rule(o.lam.rule, "mhe").internal)
-    return (base or MHESettings()).replace(**kw)
+def settings_for(spec: EstimatorSpec, options: IdentifyOptions | None = None, base=None):
+    """The settings ``spec`` runs with: ``base`` (default: its settings dataclass's defaults) on the
+    row's membrane, with the options its settings declare applied."""
+    settings = base if base is not None else spec.settings()
+    if any(f.name == "membrane_model" for f in dataclasses.fields(settings)):
+        settings = dataclasses.replace(settings, membrane_model=spec.model)
+    return apply_options(settings, options if options is not None else IdentifyOptions())
 
 
-def batch_settings(spec: EstimatorSpec, options: IdentifyOptions, base: RealisticSettings | None = None):
-    """The whole-record estimator's settings of ``options`` (membrane physics from ``spec``)."""
-    kw = {"membrane_model": spec.model}
+def check_settings(spec: EstimatorSpec, settings) -> None:
+    """Refuse a settings object that is not the estimator's own settings dataclass (``None`` passes)."""
+    if settings is None:
+        return
+    if spec.stream or spec.method not in _TAKES_SETTINGS:
+        raise InputError(f"settings: the {spec.label} takes no settings object")
+    if not isinstance(settings, spec.settings):
+        kind = spec.settings.__name__
+        raise InputError(f"settings = {type(settings).__name__}: the {spec.label} takes a {kind} (or None)")
+
+
+def _mhe(spec, model, meas, options, settings, truth, frames) -> IdentificationResult:
+    p0 = options.initial_load
+    result = mhe_identify(model, meas, settings_for(spec, options, settings), initial_load=p0)
+    result = check_mhe_result(model, meas, result)
+    if result.info.get("model_adequate") is False and options.model_form is not False:
+        result = model_form_band(model, meas, result, p0)
+    return result
+
+
+def _batch(spec, model, meas, options, settings, truth, frames) -> IdentificationResult:
+    return realistic_identify(model, meas, settings_for(spec, options, settings), initial_load=options.initial_load)
+
+
+def _fullfield(spec, model, meas, options, settings, truth, frames) -> IdentificationResult:
+    if frames is None:
+        raise InputError(f"{spec.label}: no DIC frames given (wingopt identify --dic FRAMES)")
+    return fullfield_identify(model, frames, settings_for(spec, options, settings))
+
+
+def _jekf(spec, model, meas, options, settings, truth, frames) -> IdentificationResult:
+    """The joint EKF: ``jekf-seed`` tunes its lambda on the noise-free truth as the seed did."""
+    variant = spec.method.removeprefix("jekf-")
+    kw: dict = {}
     if options.modes is not None:
         kw["modes"] = options.modes
-    if options.load_model is not None:
-        kw["load_model"] = {"varying": "gust"}.get(options.load_model, options.load_model)
-    return (base or RealisticSettings()).replace(**kw)
+    lam = options.lam
+    if lam is not None and lam.is_fixed:
+        kw["regularization"] = lam.value
+    elif lam is not None and variant == "tuned":
+        kw["rule"] = resolve_rule(lam.rule, "jekf").internal
+    elif lam is not None:
+        resolve_rule(lam.rule, "jekf-seed")  # the seed's filter has its one rule: refuse any other name
+    return jekf.identify(model, meas, variant=variant, truth=truth, initial_load=options.initial_load, **kw)
 
 
-def fullfield_settings(options: IdentifyOptions, base: FullFieldSettings | None = None) -> FullFieldSettings:
-    """The full-field estimator's settings of ``options``: ``load_model`` constant is the steady mode,
-    varying the time-resolved one; ``initial_load`` the load prior's pressure scale."""
-    kw: dict = {}
-    if options.load_model is not None:
-        kw["mode"] = {"constant": "steady", "varying": "frames"}.get(options.load_model, "auto")
-    if options.initial_load is not None:
-        kw["pressure"] = abs(options.initial_load)
-    return (base or FullFieldSettings()).replace(**kw)
+RECORD_RUNNERS = {"mhe": _mhe, "batch": _batch, "fullfield": _fullfield, "jekf-seed": _jekf, "jekf-tuned": _jekf}
+"""Each record estimator's runner: ``(spec, model, measurements, options, settings, truth, frames)``."""
 
-
-def ekf_settings(spec: EstimatorSpec, options: IdentifyOptions):
-    """The streaming extended Kalman filter's settings of ``options``."""
-    from wingopt.estimation.streaming.types import NonlinearStreamSettings
-
-    s = NonlinearStreamSettings(membrane_model=spec.model)
-    return s if options.modes is None else dataclasses.replace(s, modes=options.modes)
+_TAKES_SETTINGS = ("mhe", "batch", "fullfield")
+"""The record estimators that take a settings object (the JEKF's presets are set by options)."""
 
 
 def run_record(
@@ -119,39 +123,15 @@ def run_record(
 
     ``truth`` (a simulated record) is handed only to ``jekf-seed``, which tunes its lambda on the
     noise-free truth as the seed did; ``settings`` replaces the default settings the options start
-    from (an :class:`MHESettings`, a :class:`RealisticSettings` or a :class:`FullFieldSettings`);
-    ``frames`` (:class:`~wingopt.measurements.dic.DICFrames`) are the full-field estimator's data.
+    from (the row's settings dataclass: an :class:`MHESettings`, a :class:`RealisticSettings` or a
+    :class:`FullFieldSettings`); ``frames`` (:class:`~wingopt.measurements.dic.DICFrames`) are the
+    full-field estimator's data.
     """
     if spec.stream:
         raise InputError(f"{spec.label}: a streaming estimator, use build_stream")
+    check_settings(spec, settings)
     options = IdentifyOptions() if options is None else options
-    p0 = options.initial_load
-    if spec.method == "fullfield":
-        if frames is None:
-            raise InputError(f"{spec.label}: no DIC frames given (wingopt identify --dic FRAMES)")
-        return fullfield_identify(model, frames, fullfield_settings(options, settings))
-    if spec.method == "mhe":
-        result = mhe_identify(model, measurements, mhe_settings(options, settings), initial_load=p0)
-        result = check_mhe_result(model, measurements, result)
-        if result.info.get("model_adequate") is False and options.model_form is not False:
-            result = model_form_band(model, measurements, result, p0)
-        return result
-    if spec.method == "batch":
-        return realistic_identify(model, measurements, batch_settings(spec, options, settings), initial_load=p0)
-    from wingopt.estimation import jekf
-
-    kw: dict = {}
-    if options.modes is not None:
-        kw["modes"] = options.modes
-    lam = options.lam
-    if lam is not None and lam.is_fixed:
-        kw["regularization"] = lam.value
-    elif lam is not None and spec.method == "jekf-tuned":
-        kw["rule"] = resolve_rule(lam.rule, "jekf").internal
-    elif lam is not None:
-        resolve_rule(lam.rule, "jekf-seed")  # the seed's filter has its one rule: refuse any other name
-    variant = "tuned" if spec.method == "jekf-tuned" else "seed"
-    return jekf.identify(model, measurements, variant=variant, truth=truth, initial_load=p0, **kw)
+    return RECORD_RUNNERS[spec.method](spec, model, measurements, options, settings, truth, frames)
 
 
 def build(
@@ -179,26 +159,30 @@ def build(
     )
 
 
+def _ekf_stream(spec: EstimatorSpec, model: MembraneModel, options: IdentifyOptions):
+    ekf = NonlinearStreamingEstimator(
+        model, settings_for(spec, options), noise_std=options.noise_std, initial_load=options.initial_load
+    )
+    if spec.model != "fvk":
+        return ekf
+    batch = resolve("batch", "fvk")  # a steady stream's answer is the batch estimate of its record
+    names, std = model.problem.sensor_names, options.noise_std
+    return SteadyRefit(ekf, lambda meas: run_record(batch, model, meas, options), names, noise_std=std)
+
+
+def _mhe_stream(spec: EstimatorSpec, model: MembraneModel, options: IdentifyOptions):
+    return StreamingEstimator(model, settings_for(spec, options), options.noise_std, options.initial_load)
+
+
+STREAM_BUILDERS = {"mhe": _mhe_stream, "ekf": _ekf_stream}
+"""Each streaming estimator's builder: ``(spec, model, options) -> push(t, y)`` estimator."""
+
+
 def build_stream(spec: EstimatorSpec, model: MembraneModel, options: IdentifyOptions | None = None):
     """The streaming estimator ``spec`` (``push(t, y) -> Estimate``, ``info()``, ``last``)."""
     if not spec.stream:
         raise InputError(f"{spec.label}: not a streaming estimator, use run_record")
-    options = IdentifyOptions() if options is None else options
-    if spec.method == "ekf":
-        from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator
-        from wingopt.estimation.streaming.steady_refit import SteadyRefit
-
-        ekf = NonlinearStreamingEstimator(
-            model, ekf_settings(spec, options), noise_std=options.noise_std, initial_load=options.initial_load
-        )
-        if spec.model != "fvk":
-            return ekf
-        batch = resolve("batch", "fvk")  # a steady stream's answer is the batch estimate of its record
-        names, std = model.problem.sensor_names, options.noise_std
-        return SteadyRefit(ekf, lambda meas: run_record(batch, model, meas, options), names, noise_std=std)
-    from wingopt.estimation.streaming import StreamingEstimator, StreamSettings
-
-    return StreamingEstimator(model, StreamSettings(mhe=mhe_settings(options)), options.noise_std, options.initial_load)
+    return STREAM_BUILDERS[spec.method](spec, model, IdentifyOptions() if options is None else options)
 
 
 CROSS_CHECK = "[fvk cross-check]"

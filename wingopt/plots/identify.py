@@ -60,10 +60,14 @@ def plot_lift(
     title: str = "",
     first_window_s: float | None = None,
     ax=None,
+    reported: tuple[float, float | None] | None = None,
 ):
     """Lift history with its 1-sigma band and the true lift when known; returns the figure.
 
     ``ax``: draw into this axes (nothing is written; ``path`` may be ``None``).
+
+    ``reported``: the reported lift and its 1-sigma ``(mean, std)`` (a steady record's mean), drawn as
+    a line and a band across the record and named in the legend.
 
     ``first_window_s`` shades the first MHE window, whose samples carry the first window's
     (smoothed) estimate, available only at the window's end.
@@ -73,12 +77,18 @@ def plot_lift(
     ax.plot(t, lift, color="C0", label="estimate")
     if std is not None and np.any(np.isfinite(std)):
         ax.fill_between(t, lift - std, lift + std, color="C0", alpha=0.25, label="1-sigma band")
+    if reported is not None and reported[0] is not None and np.isfinite(reported[0]):
+        mean, sd = reported
+        text = f"reported {mean:.4g} N" + ("" if sd is None else f" ± {sd:.2g} N (1 sd)")
+        ax.axhline(mean, color="C3", lw=1.5, label=text, zorder=3)
+        if sd is not None and np.isfinite(sd):
+            ax.axhspan(mean - sd, mean + sd, color="C3", alpha=0.15, lw=0)
     if truth is not None:
         ax.axhline(truth, color="k", ls="--", lw=1, label="truth")
     ax.set_xlabel("t (s)")
     ax.set_ylabel("lift (N)")
     ax.grid(alpha=0.3)
-    ax.legend(loc="best")
+    ax.legend(loc="best", fontsize="small")
     if title:
         ax.set_title(title)
     return _save(fig, path if own else None, margins=True)
@@ -230,28 +240,61 @@ def error_histories(case, result, model, index: np.ndarray, order: int = 8) -> t
     return rel(p_true, p_est), rel(w_true, w_est)
 
 
-def plot_identification(tmp: Path, run, X, Y, Pg) -> None:
+def _sensor_fit(run):
+    """``(t, measured, fitted)``: the record's sensor values and the sensors on the fitted deflection at
+    the same samples (``None`` when the result has no deflection history on the record's times)."""
+    r, m = run.result, run.measurements
+    z = np.asarray(r.deflection, dtype=float)
+    if z.ndim != 2 or z.shape[1] != run.model.n or len(r.t) != len(m.t) or not np.allclose(r.t, m.t):
+        return None
+    fitted = np.stack([np.einsum("ki,ki->k", z, (C @ z.T).T) for C in run.model.sensors.matrices], axis=1)
+    return r.t, m.values, fitted
+
+
+def plot_identification(tmp: Path, run, X, Y, P, S=None, title: str | None = None) -> dict:
     """The figures of an identification run (:class:`~wingopt.workflows.identify.IdentifyRun`) into
-    ``tmp``: the load field on the grid ``X, Y`` (``Pg``, Pa), the lift, the misfit and, with a truth,
-    the error histories."""
+    ``tmp``: the field behind the reported lift on the grid ``X, Y`` (``P``, Pa) with its band ``S``
+    beside it, the lift history with the reported lift, the misfit and, with a truth, the error
+    histories. Returns ``{file name: caption}`` of the figures written."""
+    from wingopt.plots.field import plot_field_band
+
     result, case = run.result, run.case
-    title = f"{run.protocol.get('load_case', 'data')} · {run.method}"
+    title = title or f"{run.protocol.get('load_case', 'data')} · {run.method}"
+    lift, band = result.reported_lift
+    written = {}
     first = None
     if result.method == "mhe" and "window" in result.info:
         first = float(result.t[min(result.info["window"], result.t.size) - 1] - result.t[0])
-    plot_load_field(tmp / "load_field.png", X, Y, Pg, None if case is None else case.load(X, Y), title)
+    truth = None if case is None else case.load(X, Y)
+    plot_field_band(
+        tmp / "load_field.png", X, Y, P, S, lift=lift, lift_std=band, sensors=run.problem.sensors, truth=truth,
+        title=title,
+    )  # fmt: skip
+    written["load_field.png"] = "the field behind the reported lift (load.csv), its 1-sigma band, the sensors"
+    true_lift = None if case is None else case.true_lift
     plot_lift(
-        tmp / "lift.png", result.t, result.lift, result.lift_std, None if case is None else case.true_lift, title, first
-    )
+        tmp / "lift.png", result.t, result.lift, result.lift_std, true_lift, title, first, reported=(lift, band)
+    )  # fmt: skip
+    written["lift.png"] = "the lift history (lift.csv) with its band, and the reported lift ± its band"
     if "segments_t_s" in result.info.get("adequacy", {}):
         from wingopt.plots.misfit import plot_misfit
 
         plot_misfit(tmp / "misfit.png", result.info["adequacy"], title)
+        written["misfit.png"] = "chi-square per datum per segment of the record"
     elif "sensor_fit" in result.info:  # a steady record: its data are the sensors' means
         from wingopt.plots.misfit import plot_sensor_means
 
         plot_sensor_means(tmp / "misfit.png", result.info, run.model.problem.sensor_names, title)
+        written["misfit.png"] = "measured vs fitted: each sensor's mean and the static fit"
+    elif result.method == "fullfield" and _sensor_fit(run) is not None:  # DIC: the frames' virtual sensors
+        from wingopt.plots.misfit import plot_sensor_fit
+
+        t, measured, fitted = _sensor_fit(run)
+        plot_sensor_fit(tmp / "misfit.png", t, measured, fitted, run.model.problem.sensor_names, title)
+        written["misfit.png"] = "measured vs fitted: the frames' virtual sensors and the same sensors on the fit"
     if case is not None:
         idx = np.unique(np.linspace(0, result.t.size - 1, 41).astype(int))
         le, de = error_histories(case, result, run.model, idx)
         plot_errors(tmp / "errors.png", result.t[idx], le, de, title, first)
+        written["errors.png"] = "relative L2 errors of the load and the deflection against the truth"
+    return written

@@ -9,7 +9,7 @@ import numpy as np
 from wingopt.plots import pyplot as _pyplot
 from wingopt.plots import save as _save
 
-__all__ = ["plot_misfit", "plot_sensor_means"]
+__all__ = ["plot_misfit", "plot_sensor_means", "plot_sensor_fit"]
 
 
 def plot_misfit(path: Path, adequacy: dict, title: str = "") -> Path:
@@ -54,3 +54,29 @@ def plot_sensor_means(path: Path, info: dict, names, title: str = "") -> Path:
     ax.grid(alpha=0.3, axis="y")
     ax.legend(loc="best", fontsize="small")
     return _save(fig, path, margins=True)
+
+
+def plot_sensor_fit(path: Path, t, measured, fitted, names, title: str = "") -> Path:
+    """Measured vs fitted over time, one panel per sensor: a DIC run's virtual stretch sensors (from
+    the frames) and the same sensors on the full-field fit's deflection, with the RMS residual."""
+    plt = _pyplot()
+    measured, fitted = np.asarray(measured, dtype=float), np.asarray(fitted, dtype=float)
+    p = measured.shape[1]
+    cols = 2 if p > 1 else 1
+    rows = -(-p // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(6.4 * cols / 1.4, 2.0 * rows + 0.6), squeeze=False, sharex=True)
+    for j, ax in enumerate(axes.ravel()):
+        if j >= p:
+            ax.set_visible(False)
+            continue
+        rms = float(np.sqrt(np.nanmean((measured[:, j] - fitted[:, j]) ** 2)))
+        ax.plot(t, fitted[:, j], color="C1", lw=1.6, label="fitted")
+        ax.plot(t, measured[:, j], ".", color="k", ms=1.5, label="measured")  # on top: where they part shows
+        ax.set_title(f"{names[j]} · RMS residual {rms:.2g}", fontsize="small")
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(loc="best", fontsize="small")
+    for ax in axes[-1]:
+        ax.set_xlabel("t (s)")
+    if title:
+        fig.suptitle(f"{title} · measured vs fitted", fontsize="medium")
+    return _save(fig, path)

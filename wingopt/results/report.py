@@ -79,7 +79,7 @@ class Report:
     def warnings(self, items: Sequence[tuple[str, str]]) -> Report:
         """The runs' warnings (``(run, warning)`` pairs), or a line saying there are none."""
         if not items:
-            return self.paragraph("Warnings: none (every run's summary.json has an empty warnings list).", "ok")
+            return self.paragraph("Warnings: none (the warnings list of summary.json is empty).", "ok")
         lis = "".join(f"<li><b>{html.escape(run)}</b>: {html.escape(w)}</li>" for run, w in items)
         self.parts.append(f'<div class="note bad"><p>Warnings ({len(items)}):</p><ul>{lis}</ul></div>')
         return self

@@ -213,7 +213,9 @@ def clean_stale(target: Path) -> list[Path]:
     """Remove the hidden work directories of dead wingopt runs next to ``target``.
 
     Only ``.NAME.tmp-PID-*`` / ``.NAME.old-PID`` siblings whose process is gone and that are empty or
-    hold :data:`MARKER` are removed: a foreign directory of a similar name is left alone.
+    hold :data:`MARKER` are removed: a foreign directory of a similar name is left alone. A killed
+    stream's work directory that holds estimate rows (its live CSVs) is not removed: it is moved
+    aside to ``NAME.killed-PID`` (:func:`keep_killed_rows`), with a warning, before the new run starts.
     """
     removed = []
     for pattern in (f".{target.name}.tmp-*", f".{target.name}.old-*"):
@@ -225,6 +227,8 @@ def clean_stale(target: Path) -> list[Path]:
             if int(pid_text) == os.getpid() or _pid_alive(int(pid_text)):
                 continue
             try:
+                if _is_ours(p) and p.name.startswith(f".{target.name}.tmp-") and keep_killed_rows(p, target, pid_text):
+                    continue
                 if _is_ours(p) or not any(p.iterdir()):
                     shutil.rmtree(p)
                     removed.append(p)
@@ -233,6 +237,34 @@ def clean_stale(target: Path) -> list[Path]:
     if removed:
         log.info("removed %d stale work director%s of killed runs", len(removed), "y" if len(removed) == 1 else "ies")
     return removed
+
+
+def _rows(path: Path) -> int:
+    """Complete data rows of a CSV written row by row (the header and a torn last line not counted)."""
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return 0
+    return max(text.count("\n") - 1, 0)
+
+
+def keep_killed_rows(work: Path, target: Path, pid: str) -> Path | None:
+    """Move a killed run's work directory ``work`` aside to ``NAME.killed-PID`` when its CSVs hold
+    rows (a stream's estimates, flushed as they came), and warn; ``None`` (nothing kept) otherwise."""
+    rows = sum(_rows(f) for f in work.glob("*.csv"))
+    if rows == 0:
+        return None
+    kept = target.with_name(f"{target.name}.killed-{pid}")
+    n = 0
+    while kept.exists():
+        n += 1
+        kept = target.with_name(f"{target.name}.killed-{pid}.{n}")
+    os.replace(work, kept)
+    log.warning(
+        "a killed run at %s left %d estimate row(s) in its work directory: kept in %s (wingopt does not delete "
+        "it; remove it when done)", target, rows, kept,
+    )  # fmt: skip
+    return kept
 
 
 def _umask() -> int:

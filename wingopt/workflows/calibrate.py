@@ -3,7 +3,8 @@ the prestrains and damping with their posterior out, and a problem file that car
 
 :func:`calibrate_membrane` reads the problem and the calibration record (a release, a pluck or a
 tap with no flow), runs :func:`wingopt.estimation.realistic.calibration.calibrate`;
-:func:`write_calibration_outputs` hands the result to :mod:`wingopt.results`: ``summary.json`` and,
+:func:`write_calibration_outputs` hands the result to :mod:`wingopt.results`: ``summary.json`` (with
+its provenance), the figures, ``report.html`` and,
 with ``write_problem``, the problem file with ``[identification] prestrain, prestrain_std,
 prestrain_correlation, damping, damping_std, calibration`` set. ``wingopt identify`` with that
 problem then takes the calibration's posterior as its prior on the tension and the damping.
@@ -15,7 +16,7 @@ import dataclasses
 import logging
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +29,8 @@ from wingopt.membrane import MembraneModel
 from wingopt.problem import load_problem, read_problem_table
 from wingopt.problem.toml_text import table_text
 from wingopt.results import ResultDirectory, check_new_file, to_jsonable, write_json, write_text_atomic
+from wingopt.results.provenance import problem_record, provenance
+from wingopt.results.run_report import calibration_report
 from wingopt.status import RunStatus
 from wingopt.validate import check_number
 
@@ -52,6 +55,7 @@ class CalibrationRun:
     calibration: Calibration
     data_report: dict | None
     wall_s: float
+    outputs: dict = field(default_factory=dict, init=False, repr=False)  # provenance, once written
 
     @property
     def status(self) -> RunStatus:
@@ -84,6 +88,7 @@ class CalibrationRun:
             "estimator": c.info,
             "wall_s": self.wall_s,
             "warnings": list(c.warnings),
+            **self.outputs,
         }
 
 
@@ -204,21 +209,36 @@ def calibration_inputs(problem, data) -> list[tuple[str, str]]:
 
 
 def write_calibration_outputs(
-    run: CalibrationRun, out_dir: str | Path, write_problem: str | Path | None = None, *, force: bool = False
+    run: CalibrationRun,
+    out_dir: str | Path,
+    write_problem: str | Path | None = None,
+    *,
+    force: bool = False,
+    plots: bool = True,
 ):
-    """Write ``summary.json`` (atomically) and, with ``write_problem``, the calibrated problem file (an
-    existing file, the input problem file included, is refused unless ``force``, and then kept as
-    ``NAME.bak``). Returns ``(out_dir, problem path or None, backup or None)``."""
+    """Write ``summary.json`` (with the provenance: version, time, command line, inputs' SHA-256),
+    the figures (``plots``: the record, the fit's misfit), ``report.html`` (atomically) and, with
+    ``write_problem``, the calibrated problem file (an existing file, the input problem file
+    included, is refused unless ``force``, and then kept as ``NAME.bak``). Returns ``(out_dir,
+    problem path or None, backup or None)``."""
     if not isinstance(run, CalibrationRun):
         raise InputError(f"run = {type(run).__name__}: expected the CalibrationRun of calibrate_membrane")
     inputs = calibration_inputs(run.problem, run.source if run.source != "<memory>" else None)
     text = calibrated_problem_text(run) if write_problem is not None else None
     if write_problem is not None:
         check_new_file(write_problem, "--write-problem", force=force, inputs=inputs)
+    run.outputs = {"provenance": provenance(inputs), "problem_file": problem_record(run.problem)}
     with ResultDirectory(out_dir, inputs=[*inputs, ("--write-problem", write_problem)]) as tmp:
-        write_json(tmp / "summary.json", to_jsonable(run.summary()))
+        summary = to_jsonable(run.summary())
+        write_json(tmp / "summary.json", summary)
         if text is not None:
             (tmp / "calibrated.toml").write_text(text)
+        figures = {}
+        if plots:
+            from wingopt.plots.calibration import plot_calibration  # matplotlib: only when drawing
+
+            figures = plot_calibration(tmp, run, f"{Path(run.source).name} · calibration")
+        calibration_report(tmp / "report.html", summary, figures)
     written = backup = None
     if text is not None:
         written, backup = write_text_atomic(write_problem, text, what="--write-problem", force=force, inputs=inputs)

@@ -22,7 +22,8 @@ from pathlib import Path
 from wingopt.errors import InputError, SolverError
 from wingopt.estimation.mhe import MHESettings
 from wingopt.estimation.options import IdentifyOptions
-from wingopt.estimation.runners import mhe_settings
+from wingopt.estimation.registry import resolve
+from wingopt.estimation.runners import settings_for
 from wingopt.problem import load_problem
 from wingopt.problem.membrane import MembraneProblem
 from wingopt.results import OwnedDirectory, check_new_file, check_writable, write_text_atomic
@@ -192,12 +193,10 @@ class ComparisonPreset:
             raise InputError(
                 "table = no: nothing left to run; give --n-sign-seeds N or --consistency, or keep the table"
             )
-        for ld in self.loads:
-            if ld not in LOADS:
-                raise InputError(f"loads: {ld!r}: expected {', '.join(LOADS[:-1])} or {LOADS[-1]}")
-        for m in self.methods:
-            if m not in METHODS:
-                raise InputError(f"methods: {m!r}: expected some of {', '.join(METHODS)}")
+        for name, given, known in (("loads", self.loads, LOADS), ("methods", self.methods, METHODS)):
+            for v in given:
+                if v not in known:
+                    raise InputError(f"{name}: {v!r}: expected some of {', '.join(known)}")
         if self.seeds < 1 or self.first_seed < 0 or self.sign_seeds < 0:
             raise InputError("seeds: expected a positive integer (first-seed, sign-seeds: non-negative)")
         check_count("seeds", self.seeds)
@@ -293,7 +292,8 @@ def run_comparison(
             text = "".join(json.dumps(_keyed(r)) + "\n" for r in old)
             owner.write("records.jsonl", lambda tmp: tmp.write_text(text), log=True)
     records = RecordLog(rec_path, fresh=not resume, owner=owner)
-    settings = mhe_settings(IdentifyOptions(load_space=preset.load_space, state_prior=preset.state_prior))
+    options = IdentifyOptions(load_space=preset.load_space, state_prior=preset.state_prior)
+    settings = settings_for(resolve("mhe"), options)
     truth = preset.truth_mesh
     t0 = time.perf_counter()
 

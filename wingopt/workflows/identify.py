@@ -16,7 +16,6 @@ Stretch sensors cannot see the sign of the load: ``initial_load`` (default: the 
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import time
 from dataclasses import dataclass, field
@@ -29,22 +28,25 @@ from wingopt import resources
 from wingopt.errors import InputError
 from wingopt.estimation import sanity
 from wingopt.estimation.options import IdentifyOptions
-from wingopt.estimation.registry import check_options, resolve
+from wingopt.estimation.registry import FRAME_METHODS, check_options, resolve
 from wingopt.estimation.result import IdentificationResult
-from wingopt.estimation.runners import build
-from wingopt.measurements import ChannelMap, Measurements, read_measurements
+from wingopt.estimation.runners import build, check_settings
+from wingopt.measurements import ChannelMap, Measurements
 from wingopt.measurements.dic import DICFrames
 from wingopt.membrane import MembraneModel, TruthRecord
-from wingopt.membrane.loads import LOAD_CASES
 from wingopt.problem import load_problem
 from wingopt.progress import fmt_duration
 from wingopt.results import ResultDirectory, write_csv, write_json
+from wingopt.results.field import grid
+from wingopt.results.identify_files import route_name, write_identify_files
+from wingopt.results.provenance import problem_record, provenance
+from wingopt.results.run_api import RunExports
 from wingopt.status import RunStatus
-from wingopt.validate import check_nodes, check_number, check_seed
-from wingopt.values import LambdaChoice, NoiseLevel
-from wingopt.workflows.dic import dic_record
-from wingopt.workflows.protocols import TRUTH_NODES, check_truth_settings, estimator_model, simulate_case
-from wingopt.workflows.studies import evaluate, load_field, protocol_sign
+from wingopt.validate import check_number
+from wingopt.values import LambdaChoice
+from wingopt.workflows.protocols import estimator_model
+from wingopt.workflows.sources import DICRecord, MeasuredRecord, SimulatedCase, SourceRecord, data_source
+from wingopt.workflows.studies import evaluate, load_field
 
 log = logging.getLogger(__name__)
 progress = logging.getLogger("wingopt.progress.identify")  # stage lines (wingopt.progress), shown by the CLI
@@ -53,11 +55,19 @@ __all__ = ["IdentifyRun", "identify", "write_identify_outputs", "LOAD_GRID"]
 
 LOAD_GRID = (57, 29)
 """Points (x, y) of the uniform grid of ``load.csv``, edges included."""
+LOAD_COLUMNS = ("x", "y", "pressure_Pa", "pressure_std_Pa")
+"""``load.csv``: the field behind the reported lift and its 1-sigma (:mod:`wingopt.results.field`)."""
+LIFT_COLUMNS = ("t", "lift_N", "lift_std_N", "reported_lift_N", "reported_lift_std_N")
+"""``lift.csv``: the lift history and its band (NaN: none), the reported lift and its band on every row."""
 
 
 @dataclass(eq=False)
-class IdentifyRun:
-    """One identification run: its inputs, the estimate and, for simulated records, the truth."""
+class IdentifyRun(RunExports):
+    """One identification run: its inputs, the estimate and, for simulated records, the truth.
+
+    ``lift`` is the reported lift, ``lift_std`` its 1-sigma, ``lift_history`` the estimate over time;
+    ``mean_field()``, ``to_dataframe()`` and ``to_xarray()``: :class:`~wingopt.results.run_api.RunExports`.
+    """
 
     problem: Any
     model: MembraneModel
@@ -70,10 +80,11 @@ class IdentifyRun:
     protocol: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     _errors: tuple | None = field(default=None, init=False, repr=False)
+    outputs: dict = field(default_factory=dict, init=False, repr=False)  # provenance, once written
 
-    def load_field(self, k: int = -1):
-        """Callable ``(x, y) -> P`` of the estimated pressure at sample ``k`` (Pa)."""
-        return load_field(self.result, self.model, k)
+    def load_field(self, k: int | None = None):
+        """Callable ``(x, y) -> P`` (Pa): the field behind the reported lift (``load.csv``), or sample ``k``'s."""
+        return self.mean_field() if k is None else load_field(self.result, self.model, k)
 
     @property
     def lift(self) -> float:
@@ -136,6 +147,8 @@ class IdentifyRun:
         }
         if self.data_report is not None:
             out["data"] = self.data_report
+        out["route"], out["mean_field"] = route_name(res), self.mean_field().as_dict()
+        out.update(self.outputs)
         out.update(self.errors())
         out["estimator"] = {k: v for k, v in res.info.items() if k != "iterations_per_window"}
         # issue 11: adequacy flag, warnings, identified parameters and left-out data at top level
@@ -152,30 +165,17 @@ class IdentifyRun:
         return out
 
 
-def _with_noise_std(meas: Measurements, std: float | None) -> Measurements:
-    if std is None:
-        return dataclasses.replace(meas, noise_std=None)
-    return dataclasses.replace(meas, noise_std=np.full(len(meas.sensor_names), float(std)))
-
-
 def identify(
     problem,
+    source: SimulatedCase | MeasuredRecord | DICRecord | None = None,
     *,
     load: str | None = None,
-    noise_percent: float = 1.0,
-    seed: int = 0,
     data: str | Path | Measurements | np.ndarray | None = None,
     dic: str | Path | DICFrames | None = None,
     method: str = "auto",
     model: str = "auto",
     options: IdentifyOptions | None = None,
-    truth_nodes: tuple[int, int] | None = TRUTH_NODES,
-    t_end: float = 1.0,
     nodes: tuple[int, int] | None = None,
-    truth: str = "linear",
-    truth_prestrain: tuple[float, float] | None = None,
-    truth_damping: float = 1.0,
-    gust=None,
     max_memory: float | None = None,
     settings=None,
     initial_load: float | None = None,
@@ -183,6 +183,7 @@ def identify(
     lam: LambdaChoice | None = None,
     noise: float | None = None,
     channels: ChannelMap | None = None,
+    **simulated,
 ) -> IdentifyRun:
     """Estimate the load of a membrane problem from a simulated (``load``) or measured (``data``) record.
 
@@ -190,13 +191,15 @@ def identify(
     ----------
     problem : MembraneProblem or str
         From :func:`wingopt.problem.load_problem`, or a built-in name / path to load.
+    source : SimulatedCase, MeasuredRecord or DICRecord, optional
+        The data (:mod:`wingopt.workflows.sources`); or one of the shorthands ``load``, ``data``, ``dic``.
     load : {"L1", "L2", "L3", "consistency", "LE"}, optional
-        Simulate the protocol with this load (truth on ``truth_nodes``; ``None`` there means the
-        seed's same-mesh protocol).
-    noise_percent : float
-        Simulated noise in PERCENT of each sensor's peak output (1 = 1 %), as ``--noise``.
-    seed : int
-        Noise seed.
+        Simulate the protocol with this load: ``SimulatedCase(load, **simulated)``. Only a simulated
+        case takes the options ``noise_percent`` (PERCENT of each sensor's peak output, as
+        ``--noise``; default 1), ``seed`` (0), ``truth`` (``"linear"``, ``"berger"``, ``"fvk"``),
+        ``truth_nodes`` (49x25; ``None``: the seed's same-mesh protocol), ``truth_prestrain``
+        ``(ex, ey)``, ``truth_damping`` (a factor), ``t_end`` (1 s) and ``gust``
+        (:class:`~wingopt.membrane.Gust`); with ``data`` or ``dic`` they are refused.
     data, channels : path, Measurements or array; ChannelMap, optional
         Measured record instead of ``load``: a CSV file (``t`` + one column per sensor, or a DAQ's columns,
         gains, offsets by ``channels``, default the problem's ``[measurements]``; recorded in ``data.channels``),
@@ -213,9 +216,6 @@ def identify(
         refused (``InputError`` naming the option and the estimator).
     nodes : (int, int), optional
         Estimator mesh (default: the problem's).
-    truth : {"linear", "berger", "fvk"}
-        Simulated truth physics (full order); ``truth_prestrain`` ``(ex, ey)``, ``truth_damping``
-        (factor) and ``gust`` (:class:`~wingopt.membrane.Gust`) put it off the problem file.
     max_memory : float, optional
         Refuse (``InputError``, before any work) a run estimated to need more bytes than this
         (default: the memory the machine has available); see :mod:`wingopt.resources`.
@@ -238,106 +238,86 @@ def identify(
             f"noise = {noise!r}: ambiguous unit; give noise_percent (simulated noise, 1 = 1 % of each sensor's "
             "peak, as wingopt identify --noise 1) or noise_std (the sensors' noise std, sensor units)"
         )
+    problem = _membrane_problem(problem)
+    if source is None:
+        source = data_source(load=load, data=data, dic=dic, channels=channels, **simulated)
+    elif any(v is not None for v in (load, data, dic, channels, *simulated.values())):
+        raise InputError("identify: give the data once, as source= or as load=/data=/dic= and their options")
+    elif not isinstance(source, (SimulatedCase, MeasuredRecord, DICRecord)):
+        raise InputError(f"source = {source!r}: expected a SimulatedCase, MeasuredRecord or DICRecord")
+    if not isinstance(method, str) or not isinstance(model, str):
+        raise InputError(f"method = {method!r}, model = {model!r}: expected names (see wingopt.estimation.registry)")
+    check_number("max_memory", max_memory, positive=True, allow_none=True)
+    opts = IdentifyOptions.merged(options, initial_load=initial_load, noise_std=noise_std, lam=lam)
+    simulated_truth = source.truth if isinstance(source, SimulatedCase) else None
+    spec = resolve(method, model, simulated=simulated_truth, frames=isinstance(source, DICRecord))
+    check_options(spec, opts)
+    check_settings(spec, settings)
+    if nodes is not None:
+        problem = problem.with_mesh(nodes)
+    record = _read(problem, source, spec, opts, max_memory)
+    return _estimate(record, spec, record.options, settings)
+
+
+def _membrane_problem(problem):
     if isinstance(problem, (str, Path)):
         problem = load_problem(problem)
     if getattr(problem, "kind", None) != "membrane":
         raise InputError(f"problem: identify needs a membrane problem, got kind {getattr(problem, 'kind', None)!r}")
     if not problem.sensors:
         raise InputError(f"problem {problem.name!r}: no [[sensors]]: identification needs stretch sensors")
-    check_seed(seed)
-    if sum(v is not None for v in (load, data, dic)) != 1:
-        raise InputError(
-            "identify: give exactly one of load= (simulated protocol), data= (measured CSV) or dic= (frames)"
+    return problem
+
+
+def _read(problem, source, spec, opts: IdentifyOptions, max_memory) -> SourceRecord:
+    """The source's record, after the size check (a simulation's before it runs, data's once read)."""
+    if isinstance(source, SimulatedCase):
+        truth_mesh = source.truth_nodes or problem.nodes
+        samples = source.samples(problem)
+        est = resources.check(
+            resources.estimate_identify(problem.nodes, samples, truth_nodes=truth_mesh, method=spec.method),
+            max_memory,
         )
-    if load is not None and (not isinstance(load, str) or load not in LOAD_CASES):
-        raise InputError(f"load = {load!r}: expected one of {', '.join(LOAD_CASES)}")
-    if not isinstance(method, str) or not isinstance(model, str):
-        raise InputError(f"method = {method!r}, model = {model!r}: expected names (see wingopt.estimation.registry)")
-    check_truth_settings(truth, truth_prestrain, truth_damping)
-    check_number("t_end", t_end, positive=True)
-    check_number("noise_percent", noise_percent, lo=0.0, hi=100.0)
-    check_number("max_memory", max_memory, positive=True, allow_none=True)
-    if truth_nodes is not None:
-        truth_nodes = check_nodes(truth_nodes, "truth_nodes")
-    if gust is not None and not callable(getattr(gust, "factor", None)):
-        raise InputError(f"gust = {gust!r}: expected a wingopt.membrane.Gust or None")
-    if settings is not None and type(settings).__name__ not in (
-        "MHESettings",
-        "RealisticSettings",
-        "FullFieldSettings",
-    ):
-        raise InputError(
-            f"settings = {settings!r}: expected an MHESettings, RealisticSettings or FullFieldSettings (or None)"
-        )
-    opts = IdentifyOptions.merged(options, initial_load=initial_load, noise_std=noise_std, lam=lam)
-    spec = resolve(method, model, simulated=truth if load is not None else None, frames=dic is not None)
-    check_options(spec, opts)
-    if settings is not None and spec.method not in ("mhe", "batch", "fullfield"):
-        raise InputError(f"settings: the {spec.label} takes no settings object")
-    if nodes is not None:
-        problem = problem.with_mesh(nodes)
-    samples, truth_mesh = 1, None
-    if load is not None:
-        fraction = NoiseLevel.from_percent(noise_percent).fraction
-        sanity.check_duration(t_end, problem.identification.dt)
-        samples, truth_mesh = int(round(t_end / problem.identification.dt)) + 1, truth_nodes or problem.nodes
-    est = resources.check(
-        resources.estimate_identify(problem.nodes, samples, truth_nodes=truth_mesh, method=spec.method), max_memory
-    )
-    membrane = estimator_model(problem)
-    case, report, protocol, frames = None, None, {}, None
-    if load is not None:
-        progress.info("simulating the %s truth of %s on %dx%d, %d samples (the whole run: about %s)", truth,
-                      getattr(load, "name", load), *truth_mesh, samples, fmt_duration(est.seconds))  # fmt: skip
-        case = simulate_case(
-            problem, load, fraction, seed, truth_nodes, t_end,
-            truth=truth, prestrain=truth_prestrain, damping=truth_damping, gust=gust, tell_noise=False,
-        )  # fmt: skip
-        meas = _with_noise_std(case.measurements, opts.noise_std)
-        if opts.initial_load is None:
-            opts = opts.replace(initial_load=protocol_sign(load) * abs(problem.identification.initial_load))
-        off_file = truth != "linear" or truth_prestrain is not None or truth_damping != 1.0 or gust is not None
-        protocol = {
-            "load_case": load,
-            "noise_percent": 100 * fraction,
-            "seed": seed,
-            "truth_mesh": list(truth_nodes or problem.nodes),
-            "protocol": "same-mesh (seed)" if truth_nodes is None else "fine-mesh truth",
-            "truth": truth
-            if not off_file
-            else f"{truth} (prestrain {truth_prestrain}, damping x{truth_damping:g}"
-            + (", gust)" if gust is not None else ")"),
-        }
-    elif dic is not None:
-        problem, frames, meas, report = dic_record(
-            problem, dic, "fullfield" if spec.method == "fullfield" else "sensors"
-        )
-        membrane = MembraneModel.from_problem(problem)  # the first frame's shape may be its initial deflection
-        meas = meas if opts.noise_std is None else _with_noise_std(meas, opts.noise_std)
-    elif isinstance(data, (str, Path)):  # read_measurements refuses a directory (one line naming data)
-        meas, report = read_measurements(data, problem.sensor_names, channels or problem.measurements)
-        meas, report = _with_noise_std(meas, opts.noise_std), report.as_dict()
+        stage = "simulating the %s truth of %s on %dx%d, %d samples (the whole run: about %s)"
+        progress.info(stage, source.truth, source.load, *truth_mesh, samples, fmt_duration(est.seconds))
+        return source.read(problem, opts)
+    resources.check(resources.estimate_identify(problem.nodes, 1, method=spec.method), max_memory)
+    if isinstance(source, DICRecord):
+        record = source.read(problem, opts, full_field=spec.method in FRAME_METHODS)
     else:
-        meas = _with_noise_std(sanity.as_measurements(data, problem.sensor_names), opts.noise_std)
-    if load is None:
-        resources.check(resources.estimate_identify(problem.nodes, meas.count, method=spec.method), max_memory)
+        record = source.read(problem, opts)
+    size = resources.estimate_identify(problem.nodes, record.measurements.count, method=spec.method)
+    resources.check(size, max_memory)
+    return record
+
+
+def _estimate(record: SourceRecord, spec, opts: IdentifyOptions, settings) -> IdentifyRun:
+    """Run the estimator ``spec`` on a source's record, with the data and fit checks around it."""
+    problem, meas = record.problem, record.measurements
+    # DIC: the first frame's shape may be the initial deflection, so the model is the record's problem's
+    membrane = estimator_model(problem) if record.frames is None else MembraneModel.from_problem(problem)
     prior = opts.initial_load if opts.initial_load is not None else problem.identification.initial_load
     warnings = sanity.sourced("data check", sanity.record_checks(membrane, meas, prior))
     t0 = time.perf_counter()
     progress.info("%s on %d samples of %d sensors", spec.label, meas.count, len(meas.sensor_names))
-    result = build(spec, membrane, opts, truth=case, settings=settings, frames=frames).run(meas)
+    result = build(spec, membrane, opts, truth=record.case, settings=settings, frames=record.frames).run(meas)
     wall = time.perf_counter() - t0
     warnings += sanity.sourced("fit check", sanity.fit_checks(membrane, meas, result, sanity.used_sigma(meas, result)))
     own = sanity.sourced(f"{spec.model} {spec.method}", result.info.get("warnings", []))  # its adequacy
     warnings += [w for w in own if w not in warnings]
     for w in warnings:  # each once, here: the engines return theirs, they do not print them
         log.warning("%s", w)
+    protocol = dict(record.protocol)
     protocol["estimator"] = {"method": spec.method, "membrane": spec.model, "options": opts.as_dict()}
-    return IdentifyRun(problem, membrane, spec.method, meas, result, wall, case, report, protocol, warnings)
+    return IdentifyRun(
+        problem, membrane, spec.method, meas, result, wall, record.case, record.report, protocol, warnings
+    )
 
 
 def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = True) -> Path:
-    """Write ``summary.json``, ``load.csv`` (uniform grid, edges included), ``lift.csv`` and figures.
+    """Write ``summary.json`` (with the provenance), ``load.csv`` (the field behind the reported lift and
+    its band on a uniform grid, edges included), ``lift.csv``, ``field.nc`` (the field over time; the
+    ``data`` extra), the figures and ``report.html`` (docs/results.md).
 
     Parameters
     ----------
@@ -346,7 +326,8 @@ def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = 
     out_dir : path
         Output directory; replaced atomically (a failed write leaves the earlier one intact).
     plots : bool
-        Write the figures (load field, lift history with its band, error histories with a truth).
+        Write the figures (the field and its band, the lift history with the reported lift, the misfit,
+        error histories with a truth); ``report.html`` is written either way.
 
     Returns
     -------
@@ -360,21 +341,21 @@ def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = 
     if not isinstance(plots, bool):
         raise InputError(f"plots = {plots!r}: expected True or False")
     problem, result = run.problem, run.result
-    xs = np.linspace(0, problem.width, LOAD_GRID[0])
-    ys = np.linspace(0, problem.height, LOAD_GRID[1])
-    X, Y = np.meshgrid(xs, ys)
-    Pg = run.load_field()(X, Y)
+    X, Y = grid(problem, LOAD_GRID)
+    mf = run.mean_field()
+    P, S = mf(X, Y), mf.std(X, Y)
+    read = [("--data", (run.data_report or {}).get("file")), ("--dic", (run.data_report or {}).get("frames_source"))]
     inputs = [("--data", (run.data_report or {}).get("file")), ("problem", getattr(problem, "source", None))]
+    run.outputs = {"provenance": provenance([*read, ("problem", getattr(problem, "source", None))]),
+                   "problem_file": problem_record(problem)}  # fmt: skip
     progress.info("writing the outputs%s (the estimate took %s)", " and figures" * plots, fmt_duration(run.wall_s))
     with ResultDirectory(out_dir, inputs=inputs) as tmp:
-        write_json(tmp / "summary.json", to_jsonable(run.summary()))
-        write_csv(tmp / "load.csv", ["x", "y", "pressure_Pa"], zip(X.ravel(), Y.ravel(), Pg.ravel()))
-        if result.lift_std is not None:
-            write_csv(tmp / "lift.csv", ["t", "lift_N", "lift_std_N"], zip(result.t, result.lift, result.lift_std))
-        else:
-            write_csv(tmp / "lift.csv", ["t", "lift_N"], zip(result.t, result.lift))
-        if plots:
-            from wingopt.plots.identify import plot_identification
-
-            plot_identification(tmp, run, X, Y, Pg)
+        summary = to_jsonable(run.summary())
+        write_json(tmp / "summary.json", summary)
+        write_csv(tmp / "load.csv", LOAD_COLUMNS, zip(X.ravel(), Y.ravel(), P.ravel(), S.ravel()))
+        n, (lift, band) = len(result.t), result.reported_lift
+        std = result.lift_std if result.lift_std is not None else np.full(n, np.nan)
+        rows = zip(result.t, result.lift, std, np.full(n, lift), np.full(n, np.nan if band is None else band))
+        write_csv(tmp / "lift.csv", LIFT_COLUMNS, rows)
+        write_identify_files(tmp, run, summary, X, Y, P, S, plots=plots)
     return Path(out_dir)

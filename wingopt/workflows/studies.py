@@ -20,11 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wingopt.errors import InputError
 from wingopt.estimation.mhe import MHESettings, mhe_identify
 from wingopt.estimation.result import IdentificationResult
 from wingopt.fe import integrate
-from wingopt.measurements.series import Measurements
 from wingopt.membrane import MembraneModel, TruthRecord
 from wingopt.problem.membrane import MembraneProblem, StretchSensorSpec
 
@@ -32,7 +30,6 @@ __all__ = [
     "CaseRecord",
     "evaluate",
     "load_field",
-    "run_method",
     "METHODS",
     "summarize",
     "comparison_markdown",
@@ -48,6 +45,7 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 METHODS = ("mhe", "jekf-seed", "jekf-tuned")
+"""The comparison study's estimators (the seed's question); a sweep runs any of the registry's."""
 
 SEED_TABLE = {
     # load: (load err 1 %, load err 5 %, deflection err 1 %, deflection err 5 %), spec §5
@@ -148,31 +146,6 @@ def evaluate(case: TruthRecord, result: IdentificationResult, model: MembraneMod
         onset_skipped_s=None if onset is None else float(onset["t_start"] - case.trajectory.t[0]),
         restarts=None if "restarts" not in result.info else len(result.info["restarts"]),
     )
-
-
-def run_method(
-    method: str,
-    model: MembraneModel,
-    measurements: Measurements,
-    mhe_settings: MHESettings | None = None,
-    initial_load: float | None = None,
-    truth: TruthRecord | None = None,
-    **kwargs,
-) -> IdentificationResult:
-    """Run ``mhe``, ``jekf-seed`` (the seed's filter, lambda tuned on the noise-free truth as in the
-    seed) or ``jekf-tuned`` (zero initial load, lambda from the data) on ``measurements``."""
-    if method == "mhe":
-        return mhe_identify(model, measurements, mhe_settings, initial_load=initial_load, **kwargs)
-    if method in ("jekf", "jekf-seed", "jekf-tuned"):
-        try:
-            from wingopt.estimation import jekf as jekf_presets
-        except ImportError as exc:  # pragma: no cover - the JEKF is built in parallel
-            raise InputError(f"method {method}: the JEKF is not available ({exc})") from None
-        variant = "tuned" if method == "jekf-tuned" else "seed"
-        return jekf_presets.identify(
-            model, measurements, variant=variant, truth=truth, initial_load=initial_load, **kwargs
-        )
-    raise InputError(f"method = {method!r}: expected mhe, jekf-seed or jekf-tuned")
 
 
 def oracle_lambda(

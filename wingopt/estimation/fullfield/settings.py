@@ -3,17 +3,21 @@
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from wingopt.errors import InputError
+from wingopt.estimation.options import option
 
 __all__ = ["FullFieldSettings", "MODES", "PRIORS", "PRESTRAIN"]
 
 MODES = ("auto", "steady", "frames")
 """``steady``: the frames averaged, one static fit; ``frames``: the steady fit, then every frame's own
 load (inertia included); ``auto``: ``frames`` when there are several frames, else ``steady``."""
+
+_MODE = {"constant": "steady", "varying": "frames"}
+"""The identification option's load model -> the mode (a steady load: the frames averaged)."""
 
 PRIORS = ("interior", "frame", "aerodynamic")
 """Load priors: zero on the frame; acting up to it (free-edge shapes); thin-airfoil shapes."""
@@ -61,11 +65,11 @@ class FullFieldSettings:
         (:mod:`.modes`; ``info["loaded_modes"]``, about 1 s of CPU).
     """
 
-    mode: str = "auto"
+    mode: str = field(default="auto", metadata=option("load_model", lambda v: {"mode": _MODE.get(v, "auto")}))
     priors: tuple[str, ...] = ("interior", "frame")
     shapes: int = 40
     edge_shapes: int = 20
-    pressure: float | None = None
+    pressure: float | None = field(default=None, metadata=option("initial_load", lambda v: {"pressure": abs(v)}))
     kappa: float = 1.0
     prestrain: str = "auto"
     smoothing: float = 1e-8

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from wingopt.errors import InputError
+from wingopt.estimation.options import option
 
 __all__ = ["JEKFSettings", "SEED_MEASUREMENT_VARIANCE", "DEFAULT_PEAK"]
 
@@ -80,9 +81,9 @@ class JEKFSettings:
         arithmetic; ``1`` = every step).
     """
 
-    regularization: float = 1.0
+    regularization: float = field(default=1.0, metadata=option("lam"))
     measurement_variance: float | tuple[float, ...] | None = SEED_MEASUREMENT_VARIANCE
-    initial_load: float | None = None
+    initial_load: float | None = field(default=None, metadata=option("initial_load"))
     initial_peak: float | None = None
     sign_prior: float | None = None
     load_std: float = math.inf
@@ -90,7 +91,7 @@ class JEKFSettings:
     velocity_std: float = 1.0e-3
     load_change: float = 0.0
     load_change_time: float = 1.0
-    modes: int | None = None
+    modes: int | None = field(default=None, metadata=option("modes"))
     structure: str = "modal"
     symmetrize_every: int = 25
 

@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from wingopt.errors import InputError
+from wingopt.estimation.lambda_rules import resolve as resolve_rule
 from wingopt.estimation.load_space import LoadSpaceKind
 from wingopt.estimation.mhe.solvers import WINDOW_SOLVERS
+from wingopt.estimation.options import option
 from wingopt.estimation.regularization import LambdaRule
 from wingopt.optim.registry import solver_names
 
@@ -24,6 +26,26 @@ STATE_PRIOR_EVIDENCE = (1.0, 0.1, 0.01, 0.001)
 SIGN_MARGIN = 0.1
 """Below this agreement with the prior (:func:`~wingopt.estimation.mhe.start.sign_score`) the sign
 is reported as undetermined (e.g. L2, no net lift, without an initial-deflection prior)."""
+
+
+# How the identification options (wingopt.estimation.options) set these settings.
+def _duration(name: str):
+    """A window or stride: whole samples (``int``) or seconds (the ``_s`` field)."""
+    return lambda v: {name if isinstance(v, int) else f"{name}_s": v}
+
+
+def _load_model(value: str) -> dict:
+    return {"load_model": "random_walk" if value == "varying" else "constant"}
+
+
+def _lambda(choice) -> dict:
+    if choice.is_fixed:
+        return {"regularization": choice.value}
+    return {"regularization": None, "lambda_rule": resolve_rule(choice.rule, "mhe").internal}
+
+
+def _state_prior(value) -> dict:
+    return {"state_prior_choices": STATE_PRIOR_EVIDENCE} if value == "evidence" else {"state_prior": value}
 
 
 @dataclass(frozen=True)
@@ -108,25 +130,25 @@ class MHESettings:
 
     window_s: float = 0.2
     stride_s: float = 0.05
-    window: int | None = None
-    stride: int | None = None
-    load_model: str = "constant"
-    load_timescale: float = 1.0
+    window: int | None = field(default=None, metadata=option("window", _duration("window")))
+    stride: int | None = field(default=None, metadata=option("stride", _duration("stride")))
+    load_model: str = field(default="constant", metadata=option("load_model", _load_model))
+    load_timescale: float = field(default=1.0, metadata=option("load_timescale"))
     shape_timescale: float = 100.0
-    consistency: bool = True
+    consistency: bool = field(default=True, metadata=option("consistency"))
     consistency_segment_s: float = 0.01
-    modes: int | None = 40
-    load_space: str = "fixed"
-    backend: str = "numpy"
-    qp_solver: str = "clarabel"
-    regularization: float | None = None
+    modes: int | None = field(default=40, metadata=option("modes"))
+    load_space: str = field(default="fixed", metadata=option("load_space"))
+    backend: str = field(default="numpy", metadata=option("solver"))
+    qp_solver: str = field(default="clarabel", metadata=option("qp_solver"))
+    regularization: float | None = field(default=None, metadata=option("lam", _lambda))
     lambda_rule: str = "robust"
     lambda_grid: tuple[float, ...] = tuple(10.0 ** np.arange(-6.0, 0.01, 1.0))
-    state_prior: float = 1.0
+    state_prior: float = field(default=1.0, metadata=option("state_prior", _state_prior))
     state_prior_choices: tuple[float, ...] = ()
     state_noise: float = 1e-6
     band_decades: float = 0.9
-    pressure_bounds: tuple[float, float] | None = None
+    pressure_bounds: tuple[float, float] | None = field(default=None, metadata=option("pressure_bounds"))
     bound_grid: tuple[int, int] = (15, 8)
     max_iterations: int = 100
     tolerance: float = 1e-2

@@ -7,12 +7,15 @@ import dataclasses
 from dataclasses import dataclass, field
 
 from wingopt.errors import InputError
+from wingopt.estimation.options import option
 from wingopt.estimation.realistic.load_model import GustAmplitude
 
 __all__ = ["RealisticSettings", "LOAD_MODELS", "MEMBRANE_MODELS"]
 
 LOAD_MODELS = ("auto", "constant", "gust")
 MEMBRANE_MODELS = ("berger", "fvk")
+_LOAD_MODEL = {"varying": "gust"}
+"""The identification option's name of a load model -> this estimator's (a gust amplitude)."""
 
 
 @dataclass(frozen=True)
@@ -81,7 +84,7 @@ class RealisticSettings:
         machine-dependent, so it is not the default: the same record would give another answer).
     """
 
-    modes: int = 48
+    modes: int = field(default=48, metadata=option("modes"))
     state_modes: int = 12
     substeps: int = 2
     substep_s: float = 0.5e-3
@@ -93,7 +96,9 @@ class RealisticSettings:
     free: tuple[str, ...] | None = None
     prestrain_rel: float | None = None
     damping_rel: float | None = None
-    load_model: str = "auto"
+    load_model: str = field(
+        default="auto", metadata=option("load_model", lambda v: {"load_model": _LOAD_MODEL.get(v, v)})
+    )
     gust: GustAmplitude = field(default_factory=GustAmplitude)
     segment_s: float = 0.05
     max_iter: int = 40

@@ -8,8 +8,12 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation.mhe import MHESettings
+from wingopt.estimation.options import option
 
-__all__ = ["StreamSettings", "NonlinearStreamSettings", "SampleClock"]
+__all__ = ["StreamSettings", "NonlinearStreamSettings", "SampleClock", "STREAM_MHE_OPTIONS"]
+
+STREAM_MHE_OPTIONS = ("lam", "window", "modes", "state_prior", "load_space", "solver", "qp_solver")
+"""The options of the MHE that a stream takes (no stride, load model or bounds: it steps per sample)."""
 
 
 @dataclass(frozen=True)
@@ -37,7 +41,7 @@ class StreamSettings:
         (16 + m instead of 3m unknowns) until the batch start-up replaces it.
     """
 
-    mhe: MHESettings = field(default_factory=MHESettings)
+    mhe: MHESettings = field(default_factory=MHESettings, metadata=option(uses=STREAM_MHE_OPTIONS))
     startup_windows: float = 2.0
     relinearize: int = 4
     min_samples: int = 20
@@ -94,7 +98,7 @@ class NonlinearStreamSettings:
         default (``cubic_modes`` of its modes with FvK's cubic stiffness).
     """
 
-    modes: int = 48
+    modes: int = field(default=48, metadata=option("modes"))
     shapes: int = 15
     state_modes: int = 12
     substeps: int = 2

@@ -20,6 +20,9 @@ import numpy as np
 from wingopt import resources
 from wingopt.errors import SolverError
 from wingopt.estimation.mhe import MHESettings
+from wingopt.estimation.options import IdentifyOptions
+from wingopt.estimation.registry import EstimatorSpec, resolve
+from wingopt.estimation.runners import run_record
 from wingopt.membrane import MembraneModel, TruthRecord
 from wingopt.problem.membrane import MembraneProblem
 from wingopt.workflows.protocols import simulate_case
@@ -29,7 +32,6 @@ from wingopt.workflows.studies import (
     noisy_case,
     oracle_lambda,
     protocol_sign,
-    run_method,
     sensor_grid,
 )
 from wingopt.workflows.sweep.engine import Engine, EngineSettings, SharedInput, SweepTask
@@ -93,8 +95,11 @@ def protocol_record(
     """
     case = noisy_case(clean, noise, seed)
     t0 = time.perf_counter()
-    extra = {"modes": jekf_modes} if method.startswith("jekf") and jekf_modes is not None else {}
-    res = run_method(method, model, case.measurements, settings, initial_load=initial_load, truth=case, **extra)
+    spec = estimator(method)
+    options = IdentifyOptions(initial_load=initial_load, modes=jekf_modes if spec.method.startswith("jekf") else None)
+    res = run_record(
+        spec, model, case.measurements, options, truth=case, settings=settings if spec.method == "mhe" else None
+    )
     rec = evaluate(case, res, model, method)
     rec.wall_s = time.perf_counter() - t0
     if method == "mhe" and oracle_offsets:
@@ -124,11 +129,18 @@ def lift_history(result, points: int = HISTORY_POINTS) -> dict:
     }
 
 
+def estimator(method: str) -> EstimatorSpec:
+    """The registry's record estimator of a study's ``method`` on the protocol's simulated (linear) truth:
+    a study runs any estimator as ``wingopt identify --load`` does (``auto`` included)."""
+    return resolve(method, simulated="linear")
+
+
 def task_cost(
     method: str, model_nodes, t_end: float, oracle: bool, jekf_modes: int | None = None, dt: float = 1e-3
 ) -> float:
     """Run-time estimate (s) of one run: the size estimate of :func:`wingopt.resources.estimate_identify`,
     times the runs of the oracle-lambda grid (the engine submits the cheapest first: early results)."""
+    method = estimator(method).method
     seconds = resources.estimate_identify(
         tuple(model_nodes), int(round(t_end / dt)) + 1, method=method, jekf_modes=jekf_modes
     ).seconds

@@ -43,11 +43,12 @@ from typing import Any
 from wingopt import resources
 from wingopt.errors import InputError, ProblemFileError
 from wingopt.estimation.mhe import MHESettings
+from wingopt.estimation.registry import METHOD_ALIASES, METHODS, resolve
 from wingopt.membrane.loads import LOAD_CASES
 from wingopt.problem import load_problem, parse_mesh, parse_problem
 from wingopt.problem.membrane import MembraneProblem
 from wingopt.resources import LIMITS
-from wingopt.workflows.studies import METHODS
+from wingopt.workflows import morph_sweep
 
 __all__ = ["SweepSpec", "Run", "load_spec", "parse_spec", "AXES"]
 
@@ -187,8 +188,12 @@ def _check_axis(source: str, where: str, key: str, value: Any) -> Any:
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
             raise _err(source, where, key, value, "a non-negative integer")
     elif key == "method":
-        if value not in METHODS:
+        if value not in METHODS + tuple(METHOD_ALIASES):
             raise _err(source, where, key, value, f"one of {', '.join(METHODS)}")
+        try:  # a record estimator of the registry on the protocol's simulated truth, as identify --load runs it
+            resolve(value, simulated="linear")
+        except InputError as exc:
+            raise _err(source, where, key, value, f"a record estimator of simulated sensor data ({exc})") from None
     elif key == "truth_mesh":
         try:
             parse_mesh(value)
@@ -215,6 +220,8 @@ def _values(source: str, where: str, key: str, value: Any) -> list:
 
 def parse_spec(data: dict, source: str = "<memory>", base: Path | None = None) -> SweepSpec:
     """Validate a parsed sweep spec (see the module docstring for the format)."""
+    if isinstance(data, dict) and data.get("kind") == morph_sweep.KIND:  # morphing robustness (issue 34)
+        return morph_sweep.parse_morph_spec(data, source, base)
     unknown = sorted(set(data) - _TOP)
     if unknown:
         raise _err(source, "", unknown[0], data[unknown[0]], f"one of the spec keys {', '.join(sorted(_TOP))}")
