@@ -1,6 +1,7 @@
-"""Compiled time loops of the cubic modal FvK model (``fvk_kernels``) against the NumPy reference
-loops and complex-step derivatives, the settled-trajectory stop, and the Levenberg–Marquardt
-convergence test on the Newton decrement."""
+"""The modal membranes' compiled time loop (``membrane.modal.kernels``, one loop for the Berger and
+the cubic FvK force laws): real against complex runs, the tangent against complex-step derivatives,
+the whole-record tangent against the sample-by-sample one, the settled-trajectory stop, and the
+Levenberg–Marquardt convergence test on the Newton decrement."""
 
 import numpy as np
 import pytest
@@ -8,8 +9,8 @@ from scipy.optimize import least_squares
 
 from wingopt.estimation.realistic.solver import levenberg_marquardt
 from wingopt.membrane import MembraneModel, bubble, load_case
+from wingopt.membrane.modal import BergerModal, FvKModal
 from wingopt.membrane.modal import kernels as fvk_kernels
-from wingopt.membrane.modal.fvk import FvKModal
 from wingopt.membrane.modal.tangent import ForceTangent
 from wingopt.problem import load_problem
 
@@ -18,13 +19,19 @@ EX, EY, DAMP = 0.045, 0.055, 1.3
 
 
 @pytest.fixture(scope="module")
-def small():
+def models():
     model = MembraneModel.from_problem(load_problem("membrane"))
     pr = model.problem
     fm = FvKModal.build(model, 20, substeps=2, cubic_modes=8)
+    bm = BergerModal.build(model, 20, substeps=2)
     q0 = fm.to_modal(model.project(bubble(pr.width, pr.height)))
     u = fm.input_matrix @ model.project(load_case("L1", pr.width, pr.height))
-    return fm, q0, u
+    return {"fvk": (fm, q0, u), "berger": (bm, q0, u)}
+
+
+@pytest.fixture(scope="module")
+def small(models):
+    return models["fvk"]
 
 
 def _seeds(fm, u, gust: bool):
@@ -39,10 +46,12 @@ def _seeds(fm, u, gust: bool):
     return amp[:-1, None] * u[None], ft, dq0, dv0, dpar
 
 
+@pytest.mark.parametrize("physics", ["fvk", "berger"])
 @pytest.mark.parametrize("nonlinear", [True, False])
-def test_compiled_trajectory_is_the_numpy_loop(small, nonlinear):
-    """Real arguments run the compiled loop; complex ones the NumPy loop: the same numbers."""
-    fm, q0, u = small
+def test_real_and_complex_runs_are_the_same_numbers(models, physics, nonlinear):
+    """Real and complex arguments run the same loop (complex arithmetic, cos/sin of a complex root
+    where the real one takes cosh/sinh below zero): the same numbers; a batch is each trajectory."""
+    fm, q0, u = models[physics]
     F, *_ = _seeds(fm, u, gust=True)
     Q = fm.simulate(q0, np.zeros(fm.m), F, EX, EY, DAMP, nonlinear=nonlinear)
     ref = fm.simulate(q0 + 0j, np.zeros(fm.m), F, EX, EY, DAMP, nonlinear=nonlinear).real
@@ -53,14 +62,16 @@ def test_compiled_trajectory_is_the_numpy_loop(small, nonlinear):
     assert np.array_equal(B[:, 1], one)
 
 
+@pytest.mark.parametrize("physics", ["fvk", "berger"])
 @pytest.mark.parametrize("nonlinear", [True, False])
-def test_compiled_tangent_is_the_exact_derivative(small, nonlinear):
-    """The compiled tangent (gust columns included) = the NumPy tangent = complex step, to rounding."""
-    fm, q0, u = small
+def test_compiled_tangent_is_the_exact_derivative(models, physics, nonlinear):
+    """The whole-record tangent (gust columns included) = the sample-by-sample tangent = complex
+    step, to rounding."""
+    fm, q0, u = models[physics]
     F, ft, dq0, dv0, dpar = _seeds(fm, u, gust=True)
     args = (q0, np.zeros(fm.m), F, EX, EY, DAMP, dq0, dv0, dpar)
     Q, dQ = fm.simulate_tangent(*args, ft, nonlinear)
-    Qn, dQn = fm.simulate_tangent(*args, lambda k: ft(k), nonlinear)  # any callable: the NumPy loop
+    Qn, dQn = fm.simulate_tangent(*args, lambda k: ft(k), nonlinear)  # any callable: one sample at a time
     assert np.abs(Q - Qn).max() < 1e-13 * np.abs(Qn).max()
     assert np.abs(dQ - dQn).max() < 1e-13 * np.abs(dQn).max()
     h = 1e-30

@@ -14,14 +14,18 @@ fvk        :class:`~.full.fvk.FvKMembrane`              :class:`~.modal.fvk.FvKM
 
 One integrator per family: the full-order models share the exponential integrator of
 :mod:`.full.integrator` (exact for the linear membrane), the modal models the exact-oscillator
-predictor-corrector of :mod:`.modal` (exact for the linear membrane; its exact tangent gives the
-sensitivities to load, initial state and parameters). :func:`forward_model` builds any of them;
-truth records (:mod:`wingopt.membrane.truth`), estimators and designs consume them through
-:class:`MembraneForward`.
+predictor-corrector of :mod:`.modal.kernels` (exact for the linear membrane; its exact tangent
+gives the sensitivities to load, initial state and parameters). :func:`forward_model` builds any of
+them; truth records (:mod:`wingopt.membrane.truth`), estimators and designs consume them through
+:class:`MembraneForward`. The estimators take their models here too, and nothing else of
+:mod:`.modal` or :mod:`.full`: :func:`modal_model` (built once per wing, cached), :func:`full_model`,
+and the types they name (re-exported).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -31,12 +35,19 @@ from wingopt.errors import InputError
 from wingopt.membrane.full.berger import BergerMembrane
 from wingopt.membrane.full.fvk import FvKMembrane
 from wingopt.membrane.full.integrator import integrate
+from wingopt.membrane.modal.base import ModalMembrane
 from wingopt.membrane.modal.berger import BergerModal
 from wingopt.membrane.modal.fvk import FvKModal
+from wingopt.membrane.modal.sample import ModalSample
+from wingopt.membrane.modal.tangent import ForceTangent
 from wingopt.membrane.model import MembraneModel
 from wingopt.membrane.parameters import MembraneParameters
 
 __all__ = ["PHYSICS", "ForwardRecord", "MembraneForward", "FullOrder", "Reduced", "forward_model"]
+__all__ += ["modal_model", "full_model", "FullStructure", "ModalMembrane", "ModalSample", "ForceTangent"]
+
+FullStructure = BergerMembrane | FvKMembrane
+"""A full-order membrane structure (what :func:`full_model` builds): the type its users name."""
 
 PHYSICS = ("linear", "berger", "fvk")
 """The membrane physics: the seed's linear membrane, uniform (Berger) tension, Föppl–von Kármán."""
@@ -98,7 +109,7 @@ class FullOrder:
     """A full-order membrane (every spline coefficient a degree of freedom): the truth's models."""
 
     physics: str
-    structure: BergerMembrane | FvKMembrane
+    structure: FullStructure
     substeps: int = 2
     reduced = False
 
@@ -198,11 +209,72 @@ def forward_model(
     if nodes is not None and tuple(model.problem.nodes) != tuple(nodes):
         model = MembraneModel.from_problem(model.problem, nodes)
     if reduced:
-        modes = min(modes, model.n)
-        if physics == "fvk":
-            return Reduced(physics, FvKModal.build(model, modes, dt=dt, substeps=substeps, cubic_modes=cubic_modes))
-        return Reduced(physics, BergerModal.build(model, modes, dt=dt, substeps=substeps))
+        kind = "fvk" if physics == "fvk" else "berger"
+        return Reduced(physics, modal_model(model, kind, min(modes, model.n), dt, substeps, cubic_modes=cubic_modes))
+    return FullOrder(physics, full_model(model, physics, params), substeps)
+
+
+def full_model(model: MembraneModel, physics: str = "fvk", params: MembraneParameters | None = None) -> FullStructure:
+    """The full-order structure of ``physics`` on ``model``'s mesh (``params`` default: the file's):
+    a :class:`~.full.fvk.FvKMembrane` for ``"fvk"``, else a :class:`~.full.berger.BergerMembrane`.
+    Not cached: its static solves keep state (a reused tangent)."""
     par = MembraneParameters.nominal(model.problem) if params is None else params
     if physics == "fvk":
-        return FullOrder(physics, FvKMembrane.from_model(model, par), substeps)
-    return FullOrder(physics, BergerMembrane(model, par), substeps)
+        return FvKMembrane.from_model(model, par)
+    return BergerMembrane(model, par)
+
+
+class _Wing:
+    """A membrane model as a cache key: what its modal model depends on (geometry, mesh, material,
+    sensors), not the identification settings, so a re-read or recalibrated problem file hits."""
+
+    def __init__(self, model: MembraneModel) -> None:
+        p = model.problem
+        self.model, self.key = model, (p.width, p.height, p.nodes, p.material, p.sensors)
+
+    def __hash__(self) -> int:
+        return hash(self.key)
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, _Wing) and self.key == other.key
+
+
+def modal_model(
+    model: MembraneModel,
+    physics: str = "fvk",
+    modes: int = 48,
+    dt: float | None = None,
+    substeps: int = 1,
+    stretch_gain: float = 1.0,
+    cubic_modes: int = 16,
+) -> ModalMembrane:
+    """The modal model of ``physics`` (``"fvk"``: :class:`~.modal.fvk.FvKModal` with ``cubic_modes``
+    cubic modes; ``"berger"``: :class:`~.modal.berger.BergerModal` at ``stretch_gain``) on the
+    ``modes`` lowest modes of ``model``, at sample period ``dt`` (default: the problem's) with
+    ``substeps`` steps per sample.
+
+    Built once per wing and settings (the FvK tensor of 30 cubic modes takes 1-1.5 s, more than a
+    steady record's fit): the modes and the tensor depend neither on ``dt`` and ``substeps`` nor on
+    the identification settings, so records at 300 Hz and 1 kHz, a lab's records of one wing and
+    the batch and streaming estimators share one build, each with its own ``dt``, ``substeps`` and
+    ``model``.
+    """
+    if physics not in ("fvk", "berger"):
+        raise InputError(f"physics = {physics!r}: expected 'fvk' or 'berger' for a modal model")
+    if not (isinstance(substeps, (int, np.integer)) and substeps >= 1):
+        raise InputError(f"substeps = {substeps!r}: expected an integer >= 1")
+    dt = model.problem.identification.dt if dt is None else dt
+    if not (np.isfinite(dt) and dt > 0):
+        raise InputError(f"dt = {dt!r}: expected a positive sample period (s)")
+    if physics == "fvk":
+        bm = _modal_model(_Wing(model), physics, modes, None, cubic_modes)
+    else:
+        bm = _modal_model(_Wing(model), physics, modes, stretch_gain, None)
+    return dataclasses.replace(bm, model=model, dt=float(dt), substeps=int(substeps))
+
+
+@functools.lru_cache(maxsize=4)
+def _modal_model(wing: _Wing, physics, modes, stretch_gain, cubic_modes) -> ModalMembrane:
+    if physics == "fvk":
+        return FvKModal.build(wing.model, modes, cubic_modes=cubic_modes)
+    return BergerModal.build(wing.model, modes, stretch_gain=stretch_gain)

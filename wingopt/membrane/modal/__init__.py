@@ -1,9 +1,10 @@
 """Modal membranes (the estimators' models): linear, Berger and cubic FvK on the lowest modes.
 
 :class:`ModalMembrane` holds the modes and the linear part; :class:`BergerModal` and
-:class:`FvKModal` add the deflection's own stiffening, integrated by the exact-oscillator
-predictor-corrector (:mod:`.oscillator`) with exact tangents (:mod:`.tangent`, :mod:`.kernels`)
-and one-sample maps for the streaming filter (:mod:`.berger_step`, :mod:`.fvk_step`).
+:class:`FvKModal` add the deflection's own stiffening, each as a force law (:mod:`.laws`) of the
+one compiled loop (:mod:`.kernels`: exact oscillators in a predictor-corrector; the record, its
+exact tangent and the streaming filter's one-sample map, :class:`~.sample.ModalSample`).
+Estimators build them through :func:`wingopt.membrane.forward.modal_model` (cached).
 """
 
 from wingopt.membrane.modal.base import ModalMembrane

@@ -16,7 +16,6 @@ linear model exactly.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,6 +23,9 @@ import scipy.linalg as sla
 
 from wingopt.errors import InputError, SolverError
 from wingopt.fe import DX, DY, VALUE, assemble, separable
+from wingopt.membrane.modal.kernels import SETTLE_TOL, SETTLE_TOL_TANGENT, settled_from, step_tangent, trajectory
+from wingopt.membrane.modal.kernels import tangent as record_tangent
+from wingopt.membrane.modal.tangent import ForceTangent
 from wingopt.membrane.model import MembraneModel
 from wingopt.membrane.parameters import MembraneParameters, membrane_stiffness
 
@@ -89,11 +91,6 @@ class ModalMembrane:
             model=model, shapes=Phi, kx=kx, ky=ky, sensor_matrices=Chat, input_matrix=B, dt=dt, substeps=int(substeps)
         )
 
-    @property
-    def linear_fields(self) -> dict:
-        """This model's :class:`ModalMembrane` fields (to build a sibling model on the same modes)."""
-        return {f.name: getattr(self, f.name) for f in dataclasses.fields(ModalMembrane)}
-
     # -- sizes and constants ---------------------------------------------------------------
     @property
     def m(self) -> int:
@@ -137,12 +134,23 @@ class ModalMembrane:
         two_a = 2.0 * self.area
         return (q * q) @ self.kx / two_a, (q * q) @ self.ky / two_a
 
-    def _coefficients(self, ex, ey, damping):
-        """Modal damping ``c_j`` (..., m) for parameters of shape (...)."""
+    def linear_terms(self, ex, ey, damping, dpar=None, substeps: int | None = None):
+        """The parameter-dependent linear part of a sub-step and its tangents.
+
+        Returns ``h`` (sub-step), the prestress stiffness ``k0`` and its tangent ``dk0`` (P, m), half
+        the damping ``a`` and ``da`` (P, m), and ``e = exp(-a h)``; ``dpar`` is ``(3, P)``, the seeds of
+        ``ex, ey, damping`` (default none); ``substeps`` per sample (default the model's).
+        """
         mat = self.model.problem.material
-        tx0, ty0 = self.tensions(np.asarray(ex)[..., None], np.asarray(ey)[..., None])
-        kv = mat.kelvin_voigt * (tx0 * self.kx + ty0 * self.ky)
-        return np.asarray(damping)[..., None] * (mat.viscous / mat.areal_density + kv)
+        nu, C, h = mat.poisson_ratio, self.stiffness_c, self.dt / (self.substeps if substeps is None else substeps)
+        k0 = C * ((ex + nu * ey) * self.kx + (ey + nu * ex) * self.ky)
+        k0x, k0y = C * (self.kx + nu * self.ky), C * (self.ky + nu * self.kx)
+        visc = mat.viscous / mat.areal_density + mat.kelvin_voigt * k0
+        a = 0.5 * damping * visc
+        dex, dey, dd = np.zeros((3, 0)) if dpar is None else dpar
+        dk0 = np.outer(dex, k0x) + np.outer(dey, k0y)
+        da = 0.5 * (np.outer(dd, visc) + damping * mat.kelvin_voigt * dk0)
+        return h, k0, dk0, a, da, np.exp(-a * h)
 
     # -- fields and sensors ----------------------------------------------------------------
     def outputs(self, Q: np.ndarray) -> np.ndarray:
@@ -167,8 +175,86 @@ class ModalMembrane:
         return np.asarray(f) @ self.input_matrix.T
 
     # -- the forward-model protocol (:mod:`wingopt.membrane.forward`) ------------------------
-    def simulate(self, q0, v0, forces, ex, ey, damping=1.0, nonlinear: bool = True):  # pragma: no cover
+    settles = False
+    """Whether a record under a force constant from some sample on stops once it has settled
+    (:data:`~.kernels.SETTLE_TOL`); complex runs never do (the derivative settles on its own scale)."""
+
+    def force_law(self, nonlinear: bool = True, dtype=float) -> tuple:  # pragma: no cover
+        """The compiled loop's force law (:mod:`.laws`), its arrays in ``dtype`` (subclasses)."""
         raise NotImplementedError
+
+    def simulate(self, q0, v0, forces, ex, ey, damping=1.0, nonlinear: bool = True) -> np.ndarray:
+        """Modal displacements at every sample.
+
+        Parameters
+        ----------
+        q0, v0 : array ``(..., m)``
+            Initial displacement and velocity (leading batch axes allowed; complex allowed).
+        forces : array ``(N, ..., m)``
+            Modal force held over each sample interval.
+        ex, ey, damping : array ``(...)`` or float
+            Prestrains and damping factor.
+        nonlinear : bool
+            ``False`` leaves the deflection's own stiffening out (the linear membrane).
+
+        Returns
+        -------
+        Q : array ``(N + 1, ..., m)``; each trajectory of a batch by the compiled loop
+        """
+        forces = np.asarray(forces)
+        N, m = forces.shape[0], self.m
+        dtype = np.result_type(q0, v0, forces, ex, ey, damping, float)
+        shape = np.broadcast_shapes(
+            np.shape(q0)[:-1], np.shape(v0)[:-1], forces.shape[1:-1], np.shape(ex), np.shape(ey), np.shape(damping)
+        )
+        q0, v0 = np.broadcast_to(q0, shape + (m,)), np.broadcast_to(v0, shape + (m,))
+        lead = (1,) * (len(shape) - forces.ndim + 2)  # the force's batch axes are the trailing ones
+        F = np.broadcast_to(forces.reshape((N,) + lead + forces.shape[1:]), (N,) + shape + (m,))
+        ex, ey, damping = (np.broadcast_to(np.asarray(x, dtype), shape) for x in (ex, ey, damping))
+        Q = np.empty((N + 1,) + shape + (m,), dtype)
+        law = self.force_law(nonlinear, dtype)
+        real = dtype == np.float64
+        with np.errstate(over="ignore", invalid="ignore"):  # a diverging trial step gives non-finite costs
+            for i in np.ndindex(shape):
+                h, k0, _, a, _, e = self.linear_terms(ex[i], ey[i], damping[i])
+                Fi = np.ascontiguousarray(F[(slice(None),) + i], dtype)
+                settle = settled_from(Fi) if real and self.settles else N
+                q, v = np.array(q0[i], dtype), np.array(v0[i], dtype)
+                Q[(slice(None),) + i] = trajectory(q, v, Fi, k0, a, e, h, self.substeps, law, settle, SETTLE_TOL)
+        return Q
+
+    def simulate_tangent(self, q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforces, nonlinear: bool = True):
+        """Trajectory ``(N+1, m)`` and its exact tangents ``(N+1, P, m)`` (real arguments).
+
+        Parameters
+        ----------
+        q0, v0 : ``(m,)``; forces : ``(N, m)``; ex, ey, damping : float
+        dq0, dv0 : ``(P, m)`` seeds of the initial state
+        dpar : ``(3, P)`` seeds of ``ex, ey, damping``
+        dforces : :class:`~.tangent.ForceTangent` (the whole record in one compiled call), or any
+            callable ``k -> (P, m)``: the tangent of the force held over interval ``k`` (sample by sample)
+        """
+        h, k0, dk0, a, da, e = self.linear_terms(ex, ey, damping, dpar)
+        mm = lambda x: np.ascontiguousarray(np.asarray(x, float).T)  # noqa: E731 - mode-major for the kernel
+        q, v, forces = np.asarray(q0, float), np.asarray(v0, float), np.ascontiguousarray(forces, float)
+        N = forces.shape[0]
+        # the loop's constants: the linear part (tangents mode-major) and the force law
+        terms = (k0, mm(dk0), a, mm(da), e, h, self.substeps, self.force_law(nonlinear))
+        if isinstance(dforces, ForceTangent):
+            f = dforces
+            settle = settled_from(forces, f.amp, f.hats) if self.settles else N
+            amp, base, hats = np.asarray(f.amp, float), mm(f.base), np.ascontiguousarray(f.hats, float)
+            force = (amp, base, hats, int(f.g0), np.asarray(f.fc, float))
+            tols = (SETTLE_TOL, SETTLE_TOL_TANGENT)
+            Q, dQ = record_tangent(q, v, forces, *terms, mm(dq0), mm(dv0), *force, settle, tols)
+            return Q, dQ.transpose(0, 2, 1)
+        dq, dv = mm(dq0), mm(dv0)
+        Q, dQ = np.empty((N + 1, self.m)), np.empty((N + 1,) + dq.shape)
+        Q[0], dQ[0] = q, dq
+        for j in range(N):
+            q, v, dq, dv = step_tangent(q, v, forces[j], mm(dforces(j)), *terms, dq, dv)
+            Q[j + 1], dQ[j + 1] = q, dq
+        return Q, dQ.transpose(0, 2, 1)
 
     def internal_force(self, q: np.ndarray, ex: float, ey: float, nonlinear: bool = True):  # pragma: no cover
         """Modal internal force ``k0 q + N(q)`` and its Jacobian at ``q`` (subclasses)."""

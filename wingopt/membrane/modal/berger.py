@@ -9,10 +9,9 @@ Physics (spec §8, uniform in-plane strain): with ``z = Phi q`` the mean stretch
 ``K0 = Tx0 Gx + Ty0 Gy`` is the tension matrix of the prestress alone (the damping stays linear,
 the convention of the full-order truth models, :mod:`wingopt.membrane.full`) and ``d`` a damping
 factor. In the modes of :class:`~wingopt.membrane.modal.base.ModalMembrane` every mode is a damped
-oscillator; they couple only through the two scalar tensions ``Tx(t), Ty(t)``. One sample is
-integrated with the exact solution of each oscillator (:func:`~.oscillator.oscillator_step`) for a
-frozen tension, predictor (tension at the step start) and corrector (mean of the start and
-predicted-end tensions): second order in the tension variation, exact for the linear model.
+oscillator; they couple only through the two scalar tensions ``Tx(t), Ty(t)``: the model's force
+law (:data:`~.laws.BERGER`), integrated by the modal membranes' one compiled loop (:mod:`.kernels`:
+exact oscillators for a frozen tension, predictor-corrector on the tension).
 """
 
 from __future__ import annotations
@@ -24,8 +23,7 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.membrane.modal.base import ModalMembrane
-from wingopt.membrane.modal.oscillator import oscillator_step
-from wingopt.membrane.modal.tangent import simulate_tangent
+from wingopt.membrane.modal.laws import BERGER
 from wingopt.membrane.model import MembraneModel
 
 __all__ = ["BergerModal"]
@@ -38,6 +36,7 @@ class BergerModal(ModalMembrane):
     """Modal Berger membrane; ``stretch_gain`` multiplies the deflection's own stretch (1: Berger)."""
 
     stretch_gain: float = 1.0
+    physics = "berger"
 
     @classmethod
     def build(
@@ -55,59 +54,15 @@ class BergerModal(ModalMembrane):
             raise InputError(f"stretch_gain = {stretch_gain!r}: expected a non-negative number")
         return cls(**cls.modal_fields(model, modes, dt, substeps), stretch_gain=float(stretch_gain))
 
-    def simulate(self, q0, v0, forces, ex, ey, damping=1.0, nonlinear: bool = True):
-        """Modal displacements at every sample.
-
-        Parameters
-        ----------
-        q0, v0 : array ``(..., m)``
-            Initial displacement and velocity (leading batch axes allowed; complex allowed).
-        forces : array ``(N, ..., m)``
-            Modal force held over each sample interval.
-        ex, ey, damping : array ``(...)`` or float
-            Prestrains and damping factor.
-        nonlinear : bool
-            ``False`` leaves the deflection's own stretch out (the linear membrane).
-
-        Returns
-        -------
-        Q : array ``(N + 1, ..., m)``
-        """
-        forces = np.asarray(forces)
-        N = forces.shape[0]
-        dtype = np.result_type(q0, v0, forces, ex, ey, damping, float)
-        q = np.array(q0, dtype=dtype)
-        v = np.array(v0, dtype=dtype)
-        ex = np.asarray(ex, dtype=dtype)
-        ey = np.asarray(ey, dtype=dtype)
-        c = self._coefficients(ex, ey, np.asarray(damping, dtype=dtype))
-        exb, eyb = ex[..., None], ey[..., None]
-        h = self.dt / self.substeps
-        Q = np.empty((N + 1,) + np.broadcast_shapes(q.shape[:-1], forces.shape[1:-1]) + (self.m,), dtype=dtype)
-        nu = self.model.problem.material.poisson_ratio
-        C = self.stiffness_c
-        ia = 1.0 / (2.0 * self.area)
+    def force_law(self, nonlinear: bool = True, dtype=float) -> tuple:
+        """Uniform tension (:data:`~.laws.BERGER`): every mode's stiffness follows the two mean stretches."""
+        nu, C = self.model.problem.material.poisson_ratio, self.stiffness_c
         on = self.stretch_gain if nonlinear else 0.0
+        ia = 1.0 / (2.0 * self.area)
         # k_j = Tx kx_j + Ty ky_j with Tx, Ty linear in the strains: k = k0 + Sx * kxs + Sy * kys
-        k0 = C * ((exb + nu * eyb) * self.kx + (eyb + nu * exb) * self.ky)
-        kxs = on * C * ia * (self.kx + nu * self.ky)
-        kys = on * C * ia * (self.ky + nu * self.kx)
-        e = np.exp(-0.5 * c * h)
-
-        def stiffness(q):
-            qq = q * q
-            return k0 + (qq @ self.kx)[..., None] * kxs + (qq @ self.ky)[..., None] * kys
-
-        Q[0] = q
-        for k in range(N):
-            u = forces[k]
-            for _ in range(self.substeps):
-                kk = stiffness(q)
-                qp, _ = oscillator_step(q, v, u, kk, c, h, e)
-                kk = 0.5 * (kk + stiffness(qp))
-                q, v = oscillator_step(q, v, u, kk, c, h, e)
-            Q[k + 1] = q
-        return Q
+        K = np.array([self.kx, self.ky, on * C * ia * (self.kx + nu * self.ky), on * C * ia * (self.ky + nu * self.kx)])
+        r = self.m if nonlinear else 0
+        return BERGER, r, np.zeros((0, 0), dtype), np.zeros((0, 0, 0)), K.astype(dtype, copy=False)
 
     def internal_force(self, q, ex, ey, nonlinear: bool = True):
         """``k(q) q`` with ``k = k0 + Sx kxs + Sy kys`` and its Jacobian ``(m, m)``."""
@@ -120,7 +75,3 @@ class BergerModal(ModalMembrane):
         k = k0 + sx * kxs + sy * kys
         J = np.diag(k) + np.outer(q * kxs, 2 * self.kx * q) + np.outer(q * kys, 2 * self.ky * q)
         return k * q, J
-
-    def simulate_tangent(self, q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforces, nonlinear: bool = True):
-        """Trajectory and exact tangents (:func:`~wingopt.membrane.modal.tangent.simulate_tangent`)."""
-        return simulate_tangent(self, q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforces, nonlinear)

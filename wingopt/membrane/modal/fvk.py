@@ -8,14 +8,11 @@ mesh from the full FvK membrane's in-plane operator; the higher modes respond li
 prestress. The tensor does not depend on the prestrains or the damping: they enter the linear
 part only.
 
-Integration (explicit, second order): ``N(q) = S(q) q`` with the secant matrix
-``S_ij = B_ijkl q_k q_l``. Its diagonal joins each oscillator's stiffness (for a uniform in-plane
-stress it *is* Berger's tension term), the off-diagonal rest ``R = N - diag(S) q`` is a force held
-over the step; both are taken at the mean of the step start and the predicted end
-(predictor-corrector). The forward sensitivities differentiate exactly this integrator
-(:meth:`FvKModal.simulate_tangent`, checked against complex steps). Real single trajectories and
-the tangent run in compiled loops (:mod:`~wingopt.membrane.modal.kernels`, the same arithmetic);
-complex and batched runs use the NumPy loops here.
+Integration: the modal membranes' one compiled loop (:mod:`.kernels`) with this model's force law
+(:data:`~.laws.CUBIC`): ``N(q) = S(q) q`` with the secant matrix ``S_ij = B_ijkl q_k q_l``; its
+diagonal joins each oscillator's stiffness (for a uniform in-plane stress it *is* Berger's tension
+term), the off-diagonal rest ``R = N - diag(S) q`` is a force held over the step; both are taken at
+the mean of the step start and the predicted end (predictor-corrector).
 """
 
 from __future__ import annotations
@@ -29,16 +26,7 @@ from wingopt.errors import InputError, SolverError
 from wingopt.membrane.full.fvk import FvKMembrane
 from wingopt.membrane.modal.base import ModalMembrane
 from wingopt.membrane.modal.cubic import cubic_tensor
-from wingopt.membrane.modal.kernels import (
-    SETTLE_TOL,
-    SETTLE_TOL_TANGENT,
-    fvk_tangent,
-    fvk_trajectory,
-    pair_tensor,
-    settled_from,
-)
-from wingopt.membrane.modal.oscillator import oscillator_step, oscillator_tangent, prestress_terms
-from wingopt.membrane.modal.tangent import ForceTangent
+from wingopt.membrane.modal.laws import CUBIC, pair_tensor
 from wingopt.membrane.model import MembraneModel
 
 __all__ = ["FvKModal"]
@@ -61,6 +49,8 @@ class FvKModal(ModalMembrane):
     tensor: np.ndarray | None = None
     diag_tensor: np.ndarray | None = None
     pair_tensor: np.ndarray | None = None
+    physics = "fvk"
+    settles = True
 
     @classmethod
     def build(
@@ -166,132 +156,9 @@ class FvKModal(ModalMembrane):
         return out
 
     # -- dynamics --------------------------------------------------------------------------
-    def simulate(self, q0, v0, forces, ex, ey, damping=1.0, nonlinear: bool = True):
-        """Modal displacements ``(N + 1, ..., m)`` at every sample (arguments as
-        :meth:`~wingopt.membrane.modal.berger.BergerModal.simulate`; ``nonlinear=False``: the linear
-        model, the Berger model's without its stretch)."""
-        forces = np.asarray(forces)
-        N, m, r = forces.shape[0], self.m, self.cubic_modes
-        dtype = np.result_type(q0, v0, forces, ex, ey, damping, float)
-        if dtype == np.float64:
-            return self._simulate_compiled(q0, v0, forces, ex, ey, damping, nonlinear)
-        r = r if nonlinear else 0
-        q = np.array(q0, dtype=dtype)
-        v = np.array(v0, dtype=dtype)
-        ex = np.asarray(ex, dtype=dtype)[..., None]
-        ey = np.asarray(ey, dtype=dtype)[..., None]
-        c = self._coefficients(ex[..., 0], ey[..., 0], np.asarray(damping, dtype=dtype))
-        nu, C = self.model.problem.material.poisson_ratio, self.stiffness_c
-        k0 = C * ((ex + nu * ey) * self.kx + (ey + nu * ex) * self.ky)
-        h = self.dt / self.substeps
-        e = np.exp(-0.5 * c * h)
-        shape = np.broadcast_shapes(q.shape[:-1], forces.shape[1:-1], k0.shape[:-1])
-        Q = np.empty((N + 1,) + shape + (m,), dtype=dtype)
-        Q[0] = q
-
-        def stiff(q):
-            kk = np.array(np.broadcast_to(k0, shape + (m,)), dtype=dtype)
-            Rf = np.zeros(shape + (m,), dtype=dtype)
-            if r:
-                d, R = self._secant(q)
-                kk[..., :r] += d
-                Rf[..., :r] = R
-            return kk, Rf
-
-        with np.errstate(over="ignore", invalid="ignore"):  # a diverging trial step gives non-finite costs
-            for k in range(N):
-                u = forces[k]
-                for _ in range(self.substeps):
-                    k1, R1 = stiff(q)
-                    qp, _ = oscillator_step(q, v, u - R1, k1, c, h, e)
-                    k2, R2 = stiff(qp)
-                    q, v = oscillator_step(q, v, u - 0.5 * (R1 + R2), 0.5 * (k1 + k2), c, h, e)
-                Q[k + 1] = q
-        return Q
-
-    def _cubic(self, nonlinear: bool) -> tuple[int, np.ndarray, np.ndarray]:
-        """Cubic modes, pair tensor and diagonal tensor of the compiled loops (none: the linear model)."""
-        if nonlinear:
-            return self.cubic_modes, self.pair_tensor, self.diag_tensor
-        return 0, np.zeros((0, 0)), np.zeros((0, 0, 0))
-
-    def _simulate_compiled(self, q0, v0, forces, ex, ey, damping, nonlinear):
-        """:meth:`simulate` for real arguments: each trajectory of the batch by the compiled loop."""
-        N, m = forces.shape[0], self.m
-        shape = np.broadcast_shapes(np.shape(q0)[:-1], np.shape(v0)[:-1], forces.shape[1:-1], np.shape(ex),
-                                    np.shape(ey), np.shape(damping))  # fmt: skip
-        q0, v0 = np.broadcast_to(q0, shape + (m,)), np.broadcast_to(v0, shape + (m,))
-        F = np.broadcast_to(forces, (N,) + shape + (m,))
-        ex, ey, damping = (np.broadcast_to(np.asarray(x, float), shape) for x in (ex, ey, damping))
-        Q = np.empty((N + 1,) + shape + (m,))
-        h = self.dt / self.substeps
-        r, Tc, _ = self._cubic(nonlinear)
-        with np.errstate(over="ignore", invalid="ignore"):  # a diverging trial step gives non-finite costs
-            for i in np.ndindex(shape):
-                _, k0, _, a, _, e = prestress_terms(self, ex[i], ey[i], damping[i], np.zeros((3, 0)))
-                Fi = np.ascontiguousarray(F[(slice(None),) + i])
-                Q[(slice(None),) + i] = fvk_trajectory(
-                    np.array(q0[i], float), np.array(v0[i], float), Fi, k0, a, e, h, self.substeps, r, Tc,
-                    settled_from(Fi), SETTLE_TOL,
-                )  # fmt: skip
-        return Q
-
-    def simulate_tangent(self, q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforces, nonlinear: bool = True):
-        """Trajectory ``(N+1, m)`` and its exact tangents ``(N+1, P, m)``; arguments as
-        :func:`~wingopt.membrane.modal.tangent.simulate_tangent`."""
-        h, k0, dk0, a, da, e = prestress_terms(self, ex, ey, damping, dpar)
-        if isinstance(dforces, ForceTangent):
-            f = dforces
-            r, Tc, Bd = self._cubic(nonlinear)
-            mm = lambda x: np.ascontiguousarray(np.asarray(x, float).T)  # noqa: E731 - mode-major for the kernel
-            Q, dQ = fvk_tangent(
-                np.asarray(q0, float), np.asarray(v0, float), np.ascontiguousarray(forces, float), k0, mm(dk0), a,
-                mm(da), e, h, self.substeps, r, Tc, Bd, mm(dq0), mm(dv0), np.asarray(f.amp, float), mm(f.base),
-                np.ascontiguousarray(f.hats, float), int(f.g0), np.asarray(f.fc, float),
-                settled_from(forces, f.amp, f.hats), SETTLE_TOL, SETTLE_TOL_TANGENT,
-            )  # fmt: skip
-            return Q, dQ.transpose(0, 2, 1)
-        m, r = self.m, self.cubic_modes if nonlinear else 0
-        T, Bd = self.tensor, self.diag_tensor
-        N, P = forces.shape[0], dq0.shape[0]
-        Q, dQ = np.empty((N + 1, m)), np.empty((N + 1, P, m))
-        q, v, dq, dv = np.array(q0, float), np.array(v0, float), np.array(dq0, float), np.array(dv0, float)
-        Q[0], dQ[0] = q, dq
-
-        def stiff(q, dq):
-            if not r:
-                return k0, dk0, np.zeros(m), np.zeros((P, m))
-            x, dx = q[:r], dq[:, :r]
-            S = (np.outer(x, x).ravel() @ T).reshape(r, r)
-            d = np.diag(S).copy()
-            ddiag = 2.0 * dx @ (Bd @ x).T  # d/dq of B_iikl x_k x_l along each direction
-            kk, dk = k0.copy(), dk0.copy()
-            kk[:r] += d
-            dk[:, :r] += ddiag
-            R, dR = np.zeros(m), np.zeros((P, m))
-            R[:r] = S @ x - d * x
-            dR[:, :r] = 3.0 * dx @ S - ddiag * x - d * dx  # S symmetric: dN = 3 S dx
-            return kk, dk, R, dR
-
-        for j in range(N):
-            u, du = forces[j], dforces(j)
-            for _ in range(self.substeps):
-                k1, dk1, R1, dR1 = stiff(q, dq)
-                qp, _, dqp, _ = oscillator_tangent(q, v, u - R1, k1, a, e, h, dq, dv, du - dR1, dk1, da)
-                k2, dk2, R2, dR2 = stiff(qp, dqp)
-                q, v, dq, dv = oscillator_tangent(
-                    q,
-                    v,
-                    u - 0.5 * (R1 + R2),
-                    0.5 * (k1 + k2),
-                    a,
-                    e,
-                    h,
-                    dq,
-                    dv,
-                    du - 0.5 * (dR1 + dR2),
-                    0.5 * (dk1 + dk2),
-                    da,
-                )
-            Q[j + 1], dQ[j + 1] = q, dq
-        return Q, dQ
+    def force_law(self, nonlinear: bool = True, dtype=float) -> tuple:
+        """The cubic force on the cubic modes (:data:`~.laws.CUBIC`); none: the linear model."""
+        if not nonlinear:
+            return CUBIC, 0, np.zeros((0, 0), dtype), np.zeros((0, 0, 0)), np.zeros((0, 0), dtype)
+        Tc = self.pair_tensor.astype(dtype, copy=False)
+        return CUBIC, self.cubic_modes, Tc, self.diag_tensor, np.zeros((0, 0), dtype)
