@@ -1,4 +1,5 @@
-"""Levenberg–Marquardt window solvers of the MHE (``numpy``, ``cvxpy``) and the window-solver interface.
+"""The MHE's window solvers ``numpy`` and ``cvxpy`` (adapters to the core Levenberg–Marquardt
+solver, :mod:`wingopt.estimation.core.least_squares`) and the window-solver interface.
 
 * ``numpy``: Levenberg–Marquardt on the window's least-squares cost with dense Cholesky steps
   (Gauss–Newton matrix, or the exact Hessian when it is positive definite). No bounds. The
@@ -21,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wingopt.errors import InputError
+from wingopt.estimation.core.least_squares import Damping, SolverState, Stop, StoppingPolicy, least_squares_fit
 from wingopt.estimation.mhe.window import WindowProblem
 from wingopt.optim.least_distance import LeastDistanceQP
 from wingopt.optim.status import SolveStatus, fail, status_from
@@ -95,8 +97,89 @@ def _chol_solve(L: np.ndarray, b: np.ndarray) -> np.ndarray:
     return sla.cho_solve((L, True), b, check_finite=False)
 
 
-class _LevenbergMarquardt(WindowSolver):
-    """Levenberg–Marquardt outer loop shared by the numpy and CVXPY backends (Nielsen's damping).
+@dataclass(frozen=True, eq=False)
+class _Window:
+    """A window's scaled Gauss–Newton (or Newton) model at ``xi``: ``cost``, matrix ``Hs``, ``bs``."""
+
+    xi: np.ndarray
+    cost: float
+    Hs: np.ndarray
+    bs: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Trial:
+    cost: float
+
+
+class _WindowProblem:
+    """A :class:`WindowProblem` in scaled unknowns ``xi = theta / scale`` as the core solver's
+    problem; the damped step is the backend's (:meth:`_DampedWindowSolver._step`)."""
+
+    def __init__(self, solver: _DampedWindowSolver, problem: WindowProblem) -> None:
+        self.solver, self.problem = solver, problem
+
+    def linearize(self, xi: np.ndarray, trial: _Trial | None) -> _Window:
+        problem, D = self.problem, self.problem.scale
+        if trial is None:
+            cost = problem.cost(D * xi)
+            if not np.isfinite(cost):
+                raise fail(self.solver.name, "non-finite cost at the start", "mhe")
+        else:
+            cost = trial.cost
+        H, b = problem.normal_equations(D * xi)
+        Hs = D[:, None] * H * D[None, :]
+        bs = D * b
+        if self.solver.hessian == "newton":
+            Hx = Hs + D[:, None] * problem.second_order(D * xi) * D[None, :]
+            if _cholesky(Hx) is not None:
+                Hs = 0.5 * (Hx + Hx.T)
+        return _Window(xi, cost, Hs, bs)
+
+    def damped_step(self, local: _Window, mu: float) -> np.ndarray | None:
+        return self.solver._step(self.problem, local.xi, local.Hs, local.bs, mu)
+
+    def predicted_decrease(self, local: _Window, d: np.ndarray) -> float:
+        return 2.0 * local.bs @ d - d @ local.Hs @ d
+
+    def trial(self, xi: np.ndarray, d: np.ndarray, first: bool) -> _Trial:
+        return _Trial(self.problem.cost(self.problem.scale * (xi + d)))
+
+
+class _WindowStopping(StoppingPolicy):
+    """The windows' stopping rule, ``tolerance`` in chi-square units: converged once an accepted
+    step was predicted and found to lower the cost by less than that (a change far below the
+    cost's statistical spread ``sqrt(2 n)``), or when no damping lowers it and the model predicts
+    little; stalled otherwise; ``max_iterations`` at most."""
+
+    def __init__(self, max_iterations: int, tolerance: float) -> None:
+        self.max_iterations, self.tolerance = max_iterations, tolerance
+
+    def before_iteration(self, state: SolverState) -> Stop | None:
+        return None if state.iterations < self.max_iterations else Stop(False, "maximum iterations reached")
+
+    def after_step(self, state: SolverState) -> Stop | None:
+        if state.predicted <= self.tolerance and state.decrease <= 10 * self.tolerance:
+            return Stop(True, "converged")
+        return None
+
+    def hopeless(self, state: SolverState) -> bool:
+        return state.predicted <= self.tolerance
+
+    def stalled(self, state: SolverState) -> Stop:
+        if state.predicted <= 10 * self.tolerance:
+            return Stop(True, "converged (no further decrease)")
+        return Stop(False, "stalled")
+
+
+# Start as Gauss–Newton: warm-started windows are next to their optimum; a failed step raises the
+# damping quickly (x2, x4, ...).
+_DAMPING = Damping(initial=1e-8, floor=1.0 / 3.0)
+
+
+class _DampedWindowSolver(WindowSolver):
+    """The numpy and CVXPY backends: the core Levenberg–Marquardt solver
+    (:mod:`wingopt.estimation.core.least_squares`) in scaled unknowns with Nielsen's damping.
 
     Subclasses provide :meth:`_step`, the minimiser of the damped quadratic model.
     ``tolerance`` is in chi-square units: the iteration stops once the model predicts less
@@ -111,64 +194,20 @@ class _LevenbergMarquardt(WindowSolver):
     def solve(self, problem: WindowProblem, theta0: np.ndarray) -> WindowSolution:
         t0 = time.perf_counter()
         D = problem.scale
-        xi = np.asarray(theta0, dtype=float) / D
-        cost = problem.cost(D * xi)
-        if not np.isfinite(cost):
-            raise fail(self.name, "non-finite cost at the start", "mhe")
-        # Start as Gauss–Newton: warm-started windows are next to their optimum; a failed step raises
-        # the damping quickly (x2, x4, ...).
-        mu, nu = 1e-8, 2.0
-        raw = "maximum iterations reached"
-        it = 0
-        while it < self.max_iterations:
-            it += 1
-            H, b = problem.normal_equations(D * xi)
-            Hs = D[:, None] * H * D[None, :]
-            bs = D * b
-            if self.hessian == "newton":
-                Hx = Hs + D[:, None] * problem.second_order(D * xi) * D[None, :]
-                if _cholesky(Hx) is not None:
-                    Hs = 0.5 * (Hx + Hx.T)
-            accepted = False
-            while not accepted:
-                d = self._step(problem, xi, Hs, bs, mu)
-                if d is None:
-                    mu *= nu
-                    nu *= 2
-                    if mu > 1e12:
-                        break
-                    continue
-                pred = 2.0 * bs @ d - d @ Hs @ d
-                new = problem.cost(D * (xi + d))
-                gain = (cost - new) / pred if pred > 0 else -1.0
-                if gain > 0:
-                    accepted = True
-                    xi = xi + d
-                    mu *= max(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3)
-                    nu = 2.0
-                    decrease, cost = cost - new, new
-                else:
-                    mu *= nu
-                    nu *= 2
-                    if mu > 1e12 or pred <= self.tolerance:
-                        break
-            if not accepted:
-                raw = "converged (no further decrease)" if pred <= 10 * self.tolerance else "stalled"
-                break
-            if pred <= self.tolerance and decrease <= 10 * self.tolerance:
-                raw = "converged"
-                break
-        status = SolveStatus.OPTIMAL if raw.startswith("converged") else None
+        policy = _WindowStopping(self.max_iterations, self.tolerance)
+        st = least_squares_fit(_WindowProblem(self, problem), np.asarray(theta0, dtype=float) / D, policy, _DAMPING)
+        raw = st.stop.reason
+        status = SolveStatus.OPTIMAL if st.stop.converged else None
         if raw == "maximum iterations reached":
             # The cost is flat along poorly observed directions; an answer after the limit is
             # still a usable (inaccurate) estimate.
             status = SolveStatus.OPTIMAL_INACCURATE
         if raw == "stalled":
             status = SolveStatus.NUMERICAL_ERROR
-        return self._finish(problem, D * xi, raw, it, t0, status)
+        return self._finish(problem, D * st.x, raw, st.iterations, t0, status)
 
 
-class NumpySolver(_LevenbergMarquardt):
+class NumpySolver(_DampedWindowSolver):
     """Dense Levenberg–Marquardt; ``hessian="newton"`` uses the exact Hessian where it is positive definite."""
 
     name = "numpy"
@@ -189,7 +228,7 @@ class NumpySolver(_LevenbergMarquardt):
         return None if L is None else _chol_solve(L, bs)
 
 
-class CvxpySolver(_LevenbergMarquardt):
+class CvxpySolver(_DampedWindowSolver):
     """Gauss–Newton/LM steps as convex QPs, built once per window shape with CVXPY Parameters.
 
     The LM subproblem ``min d^T H d - 2 b^T d`` s.t. ``lo <= A (xi + d) <= hi`` is passed in whitened

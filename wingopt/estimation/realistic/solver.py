@@ -1,12 +1,14 @@
-"""Levenberg–Marquardt on a :class:`~wingopt.estimation.realistic.record_problem.RecordProblem`.
+"""The record fits' adapter to the core least-squares solver, and what the fits share of it.
 
-Nielsen's damping update on the dense normal equations ``(J^T J + mu diag) d = -J^T r`` (data
-and prior rows together), the exact Jacobian at every accepted point. It stops when the model
-predicts less than ``tol`` chi-square units of decrease, after ``max_iter`` iterations, when the
-record's :class:`Budget` is spent, or when a ``monitor`` shown every iterate (:class:`Iterate`)
-gives a reason to stop (:mod:`.stopping`). The Gauss–Newton matrix at the optimum is the
-posterior precision (the cost is a chi-square).
-"""
+A :class:`~wingopt.estimation.realistic.record_problem.RecordProblem` (or any problem with
+``residuals(theta, jacobian=)``) is minimised by :func:`fit_record` (``levenberg_marquardt``, the
+name the fits call): the core solver (:mod:`wingopt.estimation.core.least_squares`) with Nielsen's
+damping on the dense normal equations ``(J^T J + mu diag) d = -J^T r`` (data and prior rows
+together) and the exact Jacobian at every accepted point. It stops when the undamped Gauss–Newton
+step would remove less than ``tol`` chi-square units (the Newton decrement), after ``max_iter``
+iterations, when the record's :class:`Budget` is spent, or when a ``monitor`` shown every iterate
+(:class:`Iterate`) gives a reason to stop (:mod:`.stopping`). The Gauss–Newton matrix at the
+optimum is the posterior precision (the cost is a chi-square)."""
 
 from __future__ import annotations
 
@@ -18,8 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from wingopt.errors import SolverError
+from wingopt.estimation.core.least_squares import Damping, SolverState, Stop, StoppingPolicy, least_squares_fit
 
-__all__ = ["Fit", "Budget", "Iterate", "Monitor", "levenberg_marquardt", "cost"]
+__all__ = ["Fit", "Budget", "Iterate", "Monitor", "fit_record", "levenberg_marquardt", "cost"]
 
 log = logging.getLogger(__name__)
 
@@ -109,7 +112,108 @@ class Budget:
         return over_iterations or (self.seconds is not None and self.spent >= self.seconds)
 
 
-def levenberg_marquardt(
+@dataclass(frozen=True, eq=False)
+class _Point:
+    """The record's residuals at a point (with their Jacobians when computed) and its chi-square."""
+
+    residuals: tuple
+    cost: float
+
+
+@dataclass(frozen=True, eq=False)
+class _Local:
+    """The record's Gauss–Newton model at a point: matrix ``H``, half gradient ``g``, residuals."""
+
+    rd: np.ndarray
+    rp: np.ndarray
+    Jd: np.ndarray
+    Rp: np.ndarray
+    cost: float
+    H: np.ndarray
+    g: np.ndarray
+
+
+class _RecordAdapter:
+    """A record problem (``residuals(theta, jacobian=)``) as the core solver's problem: dense
+    normal equations ``(J^T J + mu diag) d = -J^T r`` of data and prior rows together."""
+
+    def __init__(self, problem) -> None:
+        self.problem = problem
+
+    def linearize(self, theta: np.ndarray, trial: _Point | None) -> _Local:
+        # after an accepted step its Jacobian came with its residuals (one tangent run instead of a
+        # trajectory and then a tangent)
+        res = trial.residuals if trial is not None and len(trial.residuals) == 4 else None
+        rd, rp, Jd, Rp = res if res is not None else self.problem.residuals(theta, jacobian=True)
+        return _Local(rd, rp, Jd, Rp, float(rd @ rd + rp @ rp), Jd.T @ Jd + Rp.T @ Rp, Jd.T @ rd + Rp.T @ rp)
+
+    def damped_step(self, local: _Local, mu: float) -> np.ndarray | None:
+        try:
+            return -np.linalg.solve(local.H + mu * np.diag(np.diag(local.H)), local.g)
+        except np.linalg.LinAlgError:
+            return None
+
+    def predicted_decrease(self, local: _Local, step: np.ndarray) -> float:
+        pred = -(2 * local.g @ step + step @ local.H @ step)
+        if not np.isfinite(pred):
+            raise SolverError(
+                "realistic estimator",
+                "non-finite Levenberg–Marquardt step",
+                "check the data and the noise level, or use --model linear",
+            )
+        return pred
+
+    def trial(self, theta: np.ndarray, step: np.ndarray, first: bool) -> _Point:
+        # the first trial of an iteration is likely accepted: its Jacobian comes with its residuals
+        with np.errstate(over="ignore", invalid="ignore"):  # a diverging trial: a non-finite cost, rejected
+            res = self.problem.residuals(theta + step, jacobian=first)
+            rd1, rp1 = res[0], res[1]
+            return _Point(res, float(rd1 @ rd1 + rp1 @ rp1))
+
+
+class _RecordStopping(StoppingPolicy):
+    """The record fits' stopping rule: the Newton decrement below ``tol`` (converged), ``max_iter``
+    iterations, a spent :class:`Budget`, or a reason from the ``monitor``."""
+
+    def __init__(self, max_iter: int, tol: float, budget: Budget | None, monitor: Monitor | None) -> None:
+        self.max_iter, self.tol, self.budget, self.monitor = max_iter, tol, budget, monitor
+        self.first_decrement: float | None = None
+        self.decrement = float("nan")
+        self.stopped: str | None = None
+
+    def before_iteration(self, state: SolverState) -> Stop | None:
+        local = state.local
+        try:
+            decrement = float(local.g @ np.linalg.solve(local.H, local.g))
+        except np.linalg.LinAlgError:
+            decrement = np.inf
+        self.decrement = decrement
+        self.first_decrement = decrement if self.first_decrement is None else self.first_decrement
+        if decrement < self.tol:
+            return Stop(True, "converged")
+        if state.iterations >= self.max_iter:
+            return Stop(False, "maximum iterations reached")
+        if self.budget is not None and self.budget.exhausted:
+            return Stop(False, "out of budget")
+        if self.monitor is not None:
+            self.stopped = self.monitor(Iterate(state.iterations, state.x, local.cost, decrement, local.H, local.g))
+            if self.stopped is not None:
+                log.debug("LM: stopped by its monitor after %d iterations: %s", state.iterations, self.stopped)
+                return Stop(False, self.stopped)
+        if self.budget is not None:
+            self.budget.used += 1
+        return None
+
+    def stalled(self, state: SolverState) -> Stop:
+        log.debug("LM: no decrease along any damped step (decrement %.3g): stopped", self.decrement)
+        # converged if rounding-limited near a minimum
+        return Stop(self.decrement < 100 * self.tol, "no decrease along any damped step")
+
+
+_DAMPING = Damping(initial=1e-3, floor=0.1, singular=10.0)
+
+
+def fit_record(
     problem,
     theta0: np.ndarray,
     max_iter: int = 40,
@@ -117,7 +221,8 @@ def levenberg_marquardt(
     budget: Budget | None = None,
     monitor: Monitor | None = None,
 ) -> Fit:
-    """Minimise ``problem``'s chi-square from ``theta0``.
+    """Minimise ``problem``'s chi-square from ``theta0`` with the core solver
+    (:class:`~wingopt.estimation.core.least_squares.LevenbergMarquardt`).
 
     Converged when the undamped Gauss–Newton step would lower the chi-square by less than ``tol``
     (its Newton decrement ``g^T H^-1 g``: the point is within ``sqrt(tol)`` posterior standard
@@ -126,80 +231,15 @@ def levenberg_marquardt(
     ``budget`` stops it before the next iteration (``out_of_budget``; not converged), and so does a
     ``monitor`` that returns a reason for an iterate (``Fit.stopped``).
     """
-    theta = np.array(theta0, dtype=float)
-    mu, nu = 1e-3, 2.0
-    rd, rp, Jd, Rp = problem.residuals(theta, jacobian=True)
-    f = float(rd @ rd + rp @ rp)
-    converged = False
-    it = 0
-    jacobian_first = True
-    first_decrement = None
-    stopped = None
-    while True:
-        H = Jd.T @ Jd + Rp.T @ Rp
-        g = Jd.T @ rd + Rp.T @ rp
-        try:
-            decrement = float(g @ np.linalg.solve(H, g))
-        except np.linalg.LinAlgError:
-            decrement = np.inf
-        first_decrement = decrement if first_decrement is None else first_decrement
-        if decrement < tol:
-            converged = True
-            break
-        if it >= max_iter or (budget is not None and budget.exhausted):
-            break
-        if monitor is not None:
-            stopped = monitor(Iterate(it, theta, f, decrement, H, g))
-            if stopped is not None:
-                log.debug("LM: stopped by its monitor after %d iterations: %s", it, stopped)
-                break
-        it += 1
-        if budget is not None:
-            budget.used += 1
-        dH = np.diag(H).copy()
-        accepted = None
-        while True:
-            try:
-                step = -np.linalg.solve(H + mu * np.diag(dH), g)
-            except np.linalg.LinAlgError:
-                mu *= 10.0
-                continue
-            pred = -(2 * g @ step + step @ H @ step)
-            if not np.isfinite(pred):
-                raise SolverError(
-                    "realistic estimator",
-                    "non-finite Levenberg–Marquardt step",
-                    "check the data and the noise level, or use --model linear",
-                )
-            # after an accepted step the next trial is likely accepted too: its Jacobian comes with
-            # its residuals (one tangent run instead of a trajectory and then a tangent)
-            with np.errstate(over="ignore", invalid="ignore"):  # a diverging trial: a non-finite cost, rejected
-                trial = problem.residuals(theta + step, jacobian=jacobian_first)
-                rd1, rp1 = trial[0], trial[1]
-                f1 = float(rd1 @ rd1 + rp1 @ rp1)
-            rho = (f - f1) / pred if np.isfinite(f1) and pred > 0 else -1.0
-            if rho > 0:
-                log.debug(
-                    "LM %d: cost %.6g -> %.6g (predicted %.3g, mu %.2g, decrement %.3g)", it, f, f1, pred, mu, decrement
-                )
-                theta = theta + step
-                mu *= max(0.1, 1 - (2 * rho - 1) ** 3)
-                nu = 2.0
-                accepted = trial
-                break
-            jacobian_first = False
-            mu *= nu
-            nu *= 2.0
-            if mu > 1e12:
-                break
-        if mu > 1e12:
-            log.debug("LM: no decrease along any damped step (decrement %.3g): stopped", decrement)
-            converged = decrement < 100 * tol  # rounding-limited near a minimum
-            break
-        rd, rp, Jd, Rp = accepted if len(accepted) == 4 else problem.residuals(theta, jacobian=True)
-        jacobian_first = True
-        f = float(rd @ rd + rp @ rp)
-    log.debug("LM: %d iterations, cost %.4g, converged %s", it, f, converged)
-    H = Jd.T @ Jd + Rp.T @ Rp
+    policy = _RecordStopping(max_iter, tol, budget, monitor)
+    st = least_squares_fit(_RecordAdapter(problem), np.array(theta0, dtype=float), policy, _DAMPING)
+    it, converged, local = st.iterations, st.stop.converged, st.local
+    log.debug("LM: %d iterations, cost %.4g, converged %s", it, local.cost, converged)
     out = not converged and it < max_iter and budget is not None and budget.exhausted
-    return Fit(theta, float(rd @ rd), float(rp @ rp), H, Jd, rd, it, converged, out, first_decrement, stopped)
+    rd = local.rd
+    data, prior = float(rd @ rd), float(local.rp @ local.rp)
+    return Fit(st.x, data, prior, local.H, local.Jd, rd, it, converged, out, policy.first_decrement, policy.stopped)
+
+
+levenberg_marquardt = fit_record
+"""The name the record fits call (:func:`fit_record`)."""
