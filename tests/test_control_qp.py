@@ -189,8 +189,9 @@ def test_without_active_limits_the_steady_state_is_the_unconstrained_optimum(pla
     which with the LQR's input weight is the LQR's steady shape."""
     zd = plate.target(shape)
     ctrl = make_qp_controller(
-        plate, zd, vmin=-1e6, vmax=1e6, period=0.01, input_weight_si=R_DEFAULT, horizon=10, solver="casadi-qp"
-    )
+        plate, zd, vmin=-1e6, vmax=1e6, period=0.01, input_weight_si=R_DEFAULT, horizon=10, solver="casadi-qp",
+        offset_free=False,  # the law of p = (x, w_prev); offset-free's steady state: test_control_plant_mismatch
+    )  # fmt: skip
     pb = ctrl.problem
     u_free, z_lqr = steady_state(plate, zd)  # R-regularised unconstrained fit (= LQR's steady state)
     # Near its steady state no limit (voltage or slew) is active and the QP is an affine feedback law

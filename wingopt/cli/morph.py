@@ -21,6 +21,9 @@ from wingopt.problem import parse_mesh
 from wingopt.results import to_jsonable
 from wingopt.validate import check_seed
 from wingopt.workflows.morph import METHODS, morph_to_directory
+from wingopt.workflows.morph_plant import HysteresisSettings, parse_plant_scale
+
+PLANT_KINDS = ("auto", "dense", "modal")
 
 ORDER = 20
 
@@ -32,7 +35,14 @@ examples:
   wingopt morph plate --shape twist --method lqr --out runs/twist-lqr
   wingopt morph plate --shape bending --method lqr --vmin -500 --vmax 1500 --out runs/bend-sat
   wingopt morph plate --shape camber --method qp --horizon 30 --solver osqp --out runs/camber-qp --json
-  wingopt morph plate --shape twist --method lqr --mesh 7x31 --t-end 4 --out runs/twist-7x31"""
+  wingopt morph plate --shape twist --method lqr --mesh 7x31 --t-end 4 --out runs/twist-7x31
+  wingopt morph plate --shape camber --plant-scale moduli=1.1,d33=0.8,damping=2 --out runs/camber-mismatch
+  wingopt morph plate --shape camber --plant my_plate.toml --hysteresis 0.15 --creep 0.05 --out runs/camber-real
+
+a plant that is not the model: --plant PLANT.toml (a plate problem of the same geometry and patches)
+  and/or --plant-scale NAME=FACTOR,... (moduli, skin, batten, e1, e2, g12, d33, damping, density);
+  --hysteresis/--creep/--sensor-bias act on the plant only. The summary reports the plant's best
+  shape within the limits (plant_static_optimum_error) and the excess over it (excess_error)."""
 
 
 def register(sub, common) -> None:
@@ -55,7 +65,16 @@ def register(sub, common) -> None:
     p.add_argument("--period", type=float, default=0.01, help="control period, s (default 0.01 = 100 Hz)")
     p.add_argument("--sensor-noise", type=float, default=0.0, help="patch-sensor noise std, sensor units (m)")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
-    p.add_argument("--plant", choices=("auto", "dense", "modal"), default="auto", help="full-order plant model")
+    p.add_argument(
+        "--plant",
+        default="auto",
+        help="the simulated plate: a problem file (.toml) or built-in name for a plant that is not the model, "
+        "or the integrator of the model's plate: auto (default), dense or modal",
+    )
+    p.add_argument("--plant-scale", help="plant parameter factors, e.g. moduli=1.1,d33=0.8,damping=2")
+    p.add_argument("--hysteresis", type=float, help="plant patch hysteresis: major-loop width, fraction (e.g. 0.15)")
+    p.add_argument("--creep", type=float, help="plant patch creep gain, fraction (with --hysteresis or alone)")
+    p.add_argument("--sensor-bias", type=float, help="constant offset of every patch sensor, sensor units (m)")
     g = p.add_argument_group("lqr")
     g.add_argument("--r", type=float, help="LQR input weight R = r I, V^-2 (default 1e-14)")
     q = p.add_argument_group("qp")
@@ -66,6 +85,9 @@ def register(sub, common) -> None:
     )
     q.add_argument("--mode", help="closed-loop (receding horizon) or open-loop")
     q.add_argument("--no-compare", action="store_true", help="qp: skip the saturated-LQR comparison run")
+    q.add_argument(
+        "--no-offset-free", action="store_true", help="qp: no disturbance model nor target calculation (the QP before)"
+    )
     p.add_argument(
         "--max-memory", metavar="SIZE", help="refuse runs estimated to need more (e.g. 4G; default: what is available)"
     )
@@ -79,8 +101,10 @@ def register(sub, common) -> None:
 def _options(args) -> dict:
     lqr_opts = {"r": args.r}
     qp_opts = {"horizon": args.horizon, "solver": args.solver, "mode": args.mode}
+    if args.no_offset_free:
+        qp_opts["offset_free"] = False
     if args.method == "lqr":
-        given = [f"--{k}" for k, v in qp_opts.items() if v is not None]
+        given = [f"--{k.replace('_', '-')}" for k, v in qp_opts.items() if v is not None]
         if given:
             raise InputError(f"{', '.join(given)}: apply to --method qp only")
         return {k: v for k, v in lqr_opts.items() if v is not None}
@@ -96,7 +120,7 @@ def _check(args) -> None:
         raise InputError(f"shape = {args.shape!r}: expected one of {', '.join(SHAPES)}")
     if args.method not in METHODS:
         raise InputError(f"method = {args.method!r}: expected one of {', '.join(METHODS)}")
-    for name in ("vmin", "vmax", "t_end", "period", "sensor_noise"):
+    for name in ("vmin", "vmax", "t_end", "period", "sensor_noise", "hysteresis", "creep", "sensor_bias"):
         v = getattr(args, name)
         if v is not None and not math.isfinite(v):
             raise InputError(f"{name.replace('_', '-')} = {v!r}: expected a finite number")
@@ -136,9 +160,21 @@ def _morph(args, options) -> dict:
         sensor_noise=args.sensor_noise,
         seed=args.seed,
         period=args.period,
-        plant=args.plant,
+        **_plant(args),
         **options,
     )
+
+
+def _plant(args) -> dict:
+    """``--plant`` (an integrator kind or a plant problem) and the plant-only options as morph's keywords."""
+    out = {"plant": args.plant} if args.plant in PLANT_KINDS else {"plant_problem": args.plant}
+    if args.plant_scale is not None:
+        out["plant_scale"] = parse_plant_scale(args.plant_scale)
+    if args.hysteresis is not None or args.creep is not None:
+        out["actuator"] = HysteresisSettings(width=args.hysteresis or 0.0, creep=args.creep or 0.0)
+    if args.sensor_bias is not None:
+        out["sensor_bias"] = args.sensor_bias
+    return out
 
 
 def _print(summary: dict, args) -> None:
@@ -153,6 +189,9 @@ def _print(summary: dict, args) -> None:
         f"{summary['wall_s']:.1f} s"
     )
     cmp = summary.get("compare_with")
+    if summary.get("plant", "model") != "model":
+        line += f" on plant {summary['plant']!r}"
+    line += f" (plant's best {summary['plant_static_optimum_error']:.4f}, excess {summary['excess_error']:+.4f})"
     if cmp:
         line += f"; saturated lqr: shape error {cmp['shape_error']:.4f}"
     print(line + f" -> {args.out}")

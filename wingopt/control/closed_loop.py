@@ -11,7 +11,12 @@ The plant is the full finite-element model advanced by its *exact* zero-order ho
 step equal to the control period (the default) is exact at every control instant; a finer
 ``plant_dt`` only adds stored instants between them (for plots of the intersample motion).
 
-The plant models (dense or modal exact ZOH) are in :mod:`wingopt.control.plant`.
+The plant models (dense or modal exact ZOH) are in :mod:`wingopt.control.plant`. The plant need
+not be the controller's model: ``plant_model`` (a plate of the same mesh and patches with other
+parameters, issue 34) is what is simulated and what the sensors read; ``actuator`` (e.g. the
+hysteresis and creep of :mod:`wingopt.control.hysteresis`) turns the applied voltage into the one
+the patches act with; ``sensor_bias`` adds a constant offset to every sample. The shape error is
+measured in the plant's mass norm (the plant's best, its static optimum, uses the same norm).
 
 Why a 10 ms control period: 100 Hz is the real-time target of issue 4 (one QP per period on
 13x61), it samples the first two bending and the first torsion modes (10, 38, 51 Hz) well above
@@ -199,6 +204,9 @@ def simulate_closed_loop(
     plant_band_hz: float = DEFAULT_PLANT_BAND_HZ,
     z0: np.ndarray | None = None,
     zdot0: np.ndarray | None = None,
+    plant_model=None,
+    actuator=None,
+    sensor_bias=None,
 ) -> ClosedLoopResult:
     """Run ``controller`` on the full-order plant from rest (or ``z0, zdot0``) for ``t_end`` s.
 
@@ -224,6 +232,13 @@ def simulate_closed_loop(
         The same, already validated (instead of ``vmin``/``vmax``).
     plant : {"auto", "dense", "modal"}
         Plant model (see :func:`make_plant`).
+    plant_model : PlateModel, optional
+        The simulated plate when it is not ``model`` (same mesh and patches, other parameters).
+    actuator : optional
+        Patch behaviour between the applied voltage and the acting one: an object with
+        ``reset()`` and ``apply(u, dt) -> u_acting`` (:mod:`wingopt.control.hysteresis`).
+    sensor_bias : float or array (9,), optional
+        Constant offset added to every sensor sample (sensor units, m).
 
     Returns
     -------
@@ -252,12 +267,23 @@ def simulate_closed_loop(
     n_ctrl = int(np.floor(t_end / period + 1e-9))
     n_steps = n_ctrl * sub
 
-    plant_model = make_plant(model, dt, plant, plant_band_hz)
+    truth = model if plant_model is None else plant_model
+    if truth.n != model.n or truth.n_inputs != m:
+        raise InputError(
+            f"plant_model: {truth.n} dofs and {truth.n_inputs} patches, expected the model's {model.n} and {m}"
+        )
+    bias = np.zeros(m) if sensor_bias is None else np.broadcast_to(np.asarray(sensor_bias, dtype=float), (m,))
+    if not np.all(np.isfinite(bias)):
+        raise InputError(f"sensor_bias = {sensor_bias!r}: expected finite offsets (sensor units, m)")
+    plant_model = make_plant(truth, dt, plant, plant_band_hz)
     z0 = np.zeros(model.n) if z0 is None else np.asarray(z0, dtype=float)
     zdot0 = np.zeros(model.n) if zdot0 is None else np.asarray(zdot0, dtype=float)
     x = plant_model.initial_state(z0, zdot0)
-    C = model.sensing
+    C = truth.sensing
     rng = np.random.default_rng(seed)
+    U_act = np.empty((n_ctrl, m)) if actuator is not None else None
+    if actuator is not None:
+        actuator.reset()
 
     Z = np.empty((n_steps + 1, model.n))
     Zd = np.empty((n_steps + 1, model.n))
@@ -270,6 +296,8 @@ def simulate_closed_loop(
     controller.reset(model, target)
     for k in range(n_ctrl):
         y = C @ Z[k * sub]
+        if sensor_bias is not None:
+            y = y + bias
         if sensor_noise > 0:
             y = y + sensor_noise * rng.standard_normal(m)
         t0 = time.perf_counter()
@@ -280,13 +308,19 @@ def simulate_closed_loop(
         Ureq[k] = u
         u = limits.clip(u)
         U[k], Y[k] = u, y
+        u_act = u
+        if actuator is not None:
+            u_act = U_act[k] = np.asarray(actuator.apply(u, period), dtype=float)
         for s in range(sub):
-            x = plant_model.step(x, u)
+            x = plant_model.step(x, u_act)
             Z[k * sub + s + 1], Zd[k * sub + s + 1] = plant_model.fields(x)
 
     t = np.arange(n_steps + 1) * dt
-    norm_d = float(model.m_norm(target))
-    err = np.asarray(model.m_norm(Z - target)) / (norm_d if norm_d > 0 else 1.0)
+    norm_d = float(truth.m_norm(target))
+    err = np.asarray(truth.m_norm(Z - target)) / (norm_d if norm_d > 0 else 1.0)
+    info = {"plant_build_s": plant_model.build_seconds}
+    if U_act is not None:
+        info["u_acting"] = U_act
     return ClosedLoopResult(
         t=t,
         z=Z,
@@ -305,5 +339,5 @@ def simulate_closed_loop(
         vmin=lo,
         vmax=hi,
         sensor_noise=float(sensor_noise),
-        info={"plant_build_s": plant_model.build_seconds},
+        info=info,
     )

@@ -48,6 +48,7 @@ from dataclasses import asdict
 
 import numpy as np
 
+from wingopt.control.disturbance import TargetCalculator, assemble_offset_free_qp, make_disturbance_filter
 from wingopt.control.kalman import SteadyStateKalman
 from wingopt.control.mpc_assembly import _shift, assemble_qp, condense
 from wingopt.control.mpc_problem import TrackingProblem
@@ -142,12 +143,16 @@ class QPController:
             small = N * self.problem.m <= 600 or st.solver != "casadi-qp"
             form = "condensed" if dense and small else "sparse"
         t1 = time.perf_counter()
-        self.qp = assemble_qp(self.problem, N, form)
+        self.offset_free = st.offset_free and st.mode == "closed-loop"
+        self.qp = (assemble_offset_free_qp if self.offset_free else assemble_qp)(self.problem, N, form)
         t2 = time.perf_counter()
         self.backend = make_backend(st.solver, self.qp, tolerance=st.tolerance, plugin=st.plugin)
-        self.filter, self._y_scale = None, None
+        self.filter, self._y_scale, self.target = None, None, None
         if st.mode == "closed-loop":
             self.filter, self._y_scale = make_filter(self.problem, st.process_noise, st.measurement_noise)
+        if self.offset_free:
+            self.filter = make_disturbance_filter(self.problem, self.filter, st.disturbance_noise)
+            self.target = TargetCalculator(self.problem)
         self._key = key
         pb = self.problem
         self.info = {
@@ -158,6 +163,7 @@ class QPController:
             "qp_horizon": N,
             "qp_formulation": form,
             "qp_variables": self.qp.n_variables,
+            "qp_offset_free": self.offset_free,
             "reduced_modes": pb.reduced.n_modes,
             "reduced_states": pb.nx,
             "reduction_error": pb.reduced.error,
@@ -183,6 +189,7 @@ class QPController:
         self.statuses: set[str] = set()  # each distinct SolveStatus of the run's solves (for its status)
         self.objectives: list[float] = []
         self.max_violation_V = 0.0
+        self.disturbance = self.target_w = None
         if self.filter is not None:
             self.filter.reset()
         self._plan = None
@@ -193,8 +200,8 @@ class QPController:
             self.info["open_loop_solve_s"] = sol.seconds
 
     # -- stepping ---------------------------------------------------------------------------------
-    def _solve(self, x0, w_prev):
-        sol = self.backend.solve(np.r_[x0, w_prev], warm=self._warm)
+    def _solve(self, x0, w_prev, *extra):
+        sol = self.backend.solve(np.r_[(x0, w_prev, *extra)], warm=self._warm)
         self._warm = _shift(sol.v, self.qp)
         self.solve_times.append(sol.seconds)
         self.iterations.append(sol.iterations)
@@ -222,7 +229,14 @@ class QPController:
             w = self._admissible(np.asarray(w, dtype=float))
         else:
             x_hat = self.filter.update(np.asarray(y, dtype=float) / self._y_scale)
-            sol = self._solve(x_hat, self._w_prev)
+            if self.offset_free:
+                nx = self.problem.nx
+                x_hat, d_hat = x_hat[:nx], x_hat[nx:]
+                x_s, w_s = self.target.solve(d_hat)
+                sol = self._solve(x_hat, self._w_prev, d_hat, x_s, w_s)
+                self.disturbance, self.target_w = d_hat * VOLT_SCALE, w_s * VOLT_SCALE
+            else:
+                sol = self._solve(x_hat, self._w_prev)
             w = self._admissible(sol.v[:m])
             self.filter.predict(w)
         self._w_prev = w
@@ -253,6 +267,11 @@ class QPController:
                 qp_max_bound_violation_V=self.max_violation_V,
                 qp_statuses=sorted(self.statuses),
             )
+            if self.offset_free and getattr(self, "disturbance", None) is not None:
+                out.update(
+                    offset_free_disturbance_V=[float(v) for v in self.disturbance],
+                    offset_free_target_V=[float(v) for v in self.target_w],
+                )
         return out
 
 

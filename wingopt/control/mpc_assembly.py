@@ -158,8 +158,16 @@ def condense(qp: ParametricQP, problem: TrackingProblem) -> ParametricQP:
         for j in range(k + 1):
             Gamma[k * nx : (k + 1) * nx, j * m : (j + 1) * m] = FG[k - j]
     Tw = np.vstack([np.eye(nw), Gamma])
-    Tp = np.zeros((nw + N * nx, nx + m))
-    Tp[nw:, :nx] = np.vstack(Fpow[1 : N + 1])
+    npar = qp.n_parameters
+    Tp = np.zeros((nw + N * nx, npar))
+    if npar == nx + m:  # p = (x_0, w_prev): x_k = F^k x_0
+        Tp[nw:, :nx] = np.vstack(Fpow[1 : N + 1])
+    else:  # a parameter in every dynamics row (offset-free: the disturbance): x_{k+1} = F x_k + B_k p
+        Bp = qp.Bp.toarray()[: N * nx]
+        prev = np.zeros((nx, npar))
+        for k in range(N):
+            prev = F @ prev + Bp[k * nx : (k + 1) * nx]
+            Tp[nw + k * nx : nw + (k + 1) * nx] = prev
     H = qp.H.toarray()
     HTw, HTp = H @ Tw, H @ Tp
     Qp = qp.Qp.toarray()

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from wingopt.dynamics.reduction import CORRECTIONS
 from wingopt.errors import InputError
 from wingopt.optim.registry import BACKENDS, FALLBACK, default_backend
@@ -71,6 +73,18 @@ class QPSettings:
     measurement_noise : float
         Kalman filter: sensor noise standard deviation relative to each sensor's response to 1 kV
         on its own patch (default 1.0: see :func:`make_filter`).
+    offset_free : bool or None
+        Closed loop: estimate a constant input disturbance per patch and move the steady-state
+        target with it (:mod:`wingopt.control.disturbance`), so that a plant that is not the model
+        settles at its own best shape; ``False`` is the QP without it (bit-for-bit the one before).
+        Default (``None``): on in closed loop with the Riccati terminal cost, off otherwise (open
+        loop has no feedback; a terminal equality cannot follow a moving target).
+    disturbance_noise : float
+        Offset-free filter: standard deviation of the disturbance's random walk (kV per period);
+        larger is faster integral action and more noise in the voltages. Default 0.05: with 15 %
+        patch hysteresis the camber loop is within 0.1 % of the plant's best at 2 s (0.02: 1-3 %,
+        the disturbance settling in 4 s), the nominal plate's shapes within 0.4 % of the QP
+        without it (7x31, docs/control_qp.md §8).
     """
 
     horizon: int | None = None
@@ -92,6 +106,8 @@ class QPSettings:
     max_modes: int = 60
     process_noise: float = 0.05
     measurement_noise: float = 1.0
+    offset_free: bool | None = None
+    disturbance_noise: float = 0.05
 
     def __post_init__(self) -> None:
         if self.solver is None:
@@ -112,7 +128,13 @@ class QPSettings:
                 raise InputError(f"{name} = {value!r}: expected one of {', '.join(allowed)}")
         if self.horizon is not None and int(self.horizon) < 1:
             raise InputError(f"horizon = {self.horizon!r}: expected a positive number of steps")
-        for name in ("input_weight", "rate_weight", "process_noise", "measurement_noise"):
+        if self.offset_free is None:
+            object.__setattr__(self, "offset_free", self.mode == "closed-loop" and self.terminal == "lqr")
+        if not isinstance(self.offset_free, (bool, np.bool_)):
+            raise InputError(f"offset_free = {self.offset_free!r}: expected true or false")
+        if self.offset_free and self.mode == "closed-loop" and self.terminal != "lqr":
+            raise InputError(f"terminal = {self.terminal!r}: offset_free needs terminal = 'lqr' (or offset_free off)")
+        for name in ("input_weight", "rate_weight", "process_noise", "measurement_noise", "disturbance_noise"):
             if not getattr(self, name) >= 0:
                 raise InputError(f"{name} = {getattr(self, name)!r}: expected a non-negative number")
         if self.input_weight_si is not None and not self.input_weight_si > 0:

@@ -27,6 +27,7 @@ __all__ = [
     "plot_shape_error",
     "plot_surface",
     "plot_strains",
+    "plot_robustness",
 ]
 
 GRID = (31, 121)
@@ -247,4 +248,33 @@ def plot_functional_gains(path: Path | None, profiles: dict):
     axes[0][0].set_ylabel("d^2 k_b / dy^2")
     axes[1][0].set_ylabel("k_v")
     axes[0][-1].legend(fontsize=8)
+    return _save(fig, path)
+
+
+def plot_robustness(records: list[dict], path: Path | None, metric: str = "settled_relative_excess"):
+    """The excess shape error over each plant's best, per shape, one column of dots per controller.
+
+    ``records``: :func:`wingopt.workflows.morph_robustness.plant_record` records (one per plant);
+    ``metric``: ``"relative_excess"`` (final shape) or ``"settled_relative_excess"`` (the mean
+    shape of the last 0.25 s). A dashed line marks the 2 % of issue 34.
+    """
+    recs = [r for r in records if "results" in r]
+    if not recs:
+        raise InputError("plot_robustness: no records with results")
+    shapes = list(recs[0]["results"])
+    ctrls = list(recs[0]["results"][shapes[0]])
+    fig, axes = _pyplot().subplots(1, len(shapes), figsize=(3.4 * len(shapes), 3.4), sharey=True)
+    axes = np.atleast_1d(axes)
+    rng = np.random.default_rng(0)  # horizontal jitter only
+    for ax, shape in zip(axes, shapes):
+        for j, c in enumerate(ctrls):
+            v = 100.0 * np.array([r["results"][shape][c][metric] for r in recs])
+            ax.scatter(j + 0.12 * rng.standard_normal(v.size), v, s=9, alpha=0.7)
+            ax.plot([j - 0.3, j + 0.3], [np.median(v)] * 2, color="k", lw=1.5)
+        ax.axhline(2.0, color="0.4", ls="--", lw=0.8)
+        ax.axhline(0.0, color="0.6", lw=0.6)
+        ax.set_xticks(range(len(ctrls)), ctrls)
+        ax.set_yscale("symlog", linthresh=2.0)
+        ax.set_title(f"{shape} ({len(recs)} plants)")
+    axes[0].set_ylabel("excess over the plant's best, %")
     return _save(fig, path)

@@ -162,10 +162,18 @@ class MorphTargets:
 
 @dataclass(frozen=True)
 class ActuatorLimits:
-    """Voltage limits per patch, V (a macro-fibre composite takes about -500 V … +1500 V)."""
+    """Voltage limits per patch, V (a macro-fibre composite takes about -500 V … +1500 V).
+
+    ``hysteresis`` (major-loop width, fraction of the range), ``creep`` (gain, fraction) and
+    ``creep_time`` (s) describe the patches of a *simulated plant* (issue 34,
+    :mod:`wingopt.control.hysteresis`); no controller model uses them. Default 0: none.
+    """
 
     vmin: float = -500.0
     vmax: float = 1500.0
+    hysteresis: float = 0.0
+    creep: float = 0.0
+    creep_time: float = 0.3
 
 
 @dataclass(frozen=True)
@@ -347,6 +355,9 @@ def from_table(root: Table, name: str) -> PlateProblem:
     vmax = act.number("vmax", ActuatorLimits.vmax, unit="V")
     if not vmin < vmax:
         raise act.error("vmax", vmax, f"a voltage above vmin = {vmin!r}")
+    hysteresis = act.number("hysteresis", 0.0, lo=0.0, hi=0.3)  # the plant's patches (issue 34)
+    creep = act.number("creep", 0.0, lo=0.0, hi=1.0)
+    creep_time = act.number("creep_time", 0.3, positive=True, unit="s")
     act.finish()
     root.finish()
     return PlateProblem(
@@ -359,7 +370,7 @@ def from_table(root: Table, name: str) -> PlateProblem:
         patches=tuple(patches),
         nodes=nodes,
         targets=targets,
-        actuators=ActuatorLimits(vmin, vmax),
+        actuators=ActuatorLimits(vmin, vmax, hysteresis, creep, creep_time),
         name=name,
         source=root.source,
     )

@@ -34,6 +34,7 @@ from wingopt.results import ResultDirectory, check_writable, write_csv, write_js
 from wingopt.status import RunStatus, from_solver_statuses, worst
 from wingopt.validate import check_nodes, check_number, check_seed
 from wingopt.values import VoltageLimits
+from wingopt.workflows.morph_plant import build_actuator, build_plant_model, plant_extras
 
 __all__ = [
     "METHODS",
@@ -187,6 +188,11 @@ def morph(
     plant: str = "auto",
     model=None,
     max_memory: float | None = None,
+    plant_problem=None,
+    plant_scale=None,
+    plant_model=None,
+    actuator=None,
+    sensor_bias=None,
     **options,
 ) -> MorphResult:
     """Morph ``problem``'s plate into ``shape`` with ``method``, from rest, for ``t_end`` s.
@@ -215,6 +221,10 @@ def morph(
     max_memory : float, optional
         Refuse (``InputError``, before any work) a run estimated to need more bytes than this
         (default: the memory available); see :mod:`wingopt.resources`.
+    plant_problem, plant_scale, plant_model, actuator, sensor_bias : optional
+        A plant that is not the model (:mod:`wingopt.workflows.morph_plant`): its problem (or
+        file), parameter factors (``"moduli=1.1,d33=0.8"``), or its model already built; patch
+        hysteresis/creep (:mod:`wingopt.control.hysteresis`); a constant sensor offset (m).
     **options
         Passed to the method's factory (e.g. ``r`` for lqr; ``horizon, solver, mode`` for qp).
 
@@ -246,11 +256,16 @@ def morph(
     limits = resolve_limits(problem, method, vmin, vmax, model.n_inputs)
     lo, hi = limits.scalar("lower"), limits.scalar("upper")
     target = model.target(shape)
+    if plant_model is None:
+        plant_model = build_plant_model(problem, plant_problem, plant_scale, nodes)
+    actuator = build_actuator(actuator, (plant_model or model).problem, model.n_inputs)
     controller = factory(model, target, vmin=limits.lower, vmax=limits.upper, period=period, **options)
     cl = simulate_closed_loop(
-        model, controller, target, t_end=t_end, sensor_noise=sensor_noise, seed=seed, limits=limits, plant=plant
-    )
+        model, controller, target, t_end=t_end, sensor_noise=sensor_noise, seed=seed, limits=limits, plant=plant,
+        plant_model=plant_model, actuator=actuator, sensor_bias=sensor_bias,
+    )  # fmt: skip
     extras = dict(getattr(controller, "extras", {}) or {})
+    extras.update(plant_extras(model, plant_model, target, limits, cl, actuator, sensor_bias))
     wall = time.perf_counter() - t0
     log.info("morph %s/%s: shape error %.4f in %.2f s", shape, method, cl.final_shape_error, wall)
     return MorphResult(method, shape, model, target, cl, wall, lo, hi, float(t_end), dict(options), extras)
@@ -370,11 +385,14 @@ def morph_to_directory(
     horizon = _horizon(kwargs)
     resources.check(resources.estimate_morph(nodes or prob.nodes, t_end, period, horizon=horizon), max_memory)
     model = PlateModel.from_problem(prob, nodes)
+    plant_model = build_plant_model(prob, kwargs.pop("plant_problem", None), kwargs.pop("plant_scale", None), nodes)
+    kwargs["plant_model"] = plant_model
     result = morph(prob, shape, method, model=model, max_memory=max_memory, **kwargs)
     baseline = None
     if method != "lqr" and compare:
         # The baseline, saturated at the QP's limits: the same limits, read off the QP's run.
-        common = {k: v for k, v in kwargs.items() if k in ("t_end", "sensor_noise", "seed", "period", "plant")}
+        shared = ("t_end", "sensor_noise", "seed", "period", "plant", "plant_model", "actuator", "sensor_bias")
+        common = {k: v for k, v in kwargs.items() if k in shared}
         baseline = morph(
             prob, shape, "lqr", vmin=result.vmin, vmax=result.vmax, model=model, max_memory=max_memory, **common
         )

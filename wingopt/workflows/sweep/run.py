@@ -17,6 +17,7 @@ from pathlib import Path
 
 from wingopt.errors import OutputError
 from wingopt.results import OwnedDirectory
+from wingopt.workflows import morph_sweep
 from wingopt.workflows.studies import protocol_sign
 from wingopt.workflows.sweep.engine import Engine, SharedInput, SweepTask
 from wingopt.workflows.sweep.protocol import (
@@ -111,12 +112,13 @@ def run_sweep(
     if not resume and path.exists() and path.stat().st_size:
         raise OutputError(f"out = {str(out)!r}: records.jsonl exists; use --resume to continue it or another --out")
     records = RecordLog(path, fresh=not resume, owner=owner)
-    tasks, shared = sweep_tasks(spec)
+    morph = getattr(spec, "kind", None) == morph_sweep.KIND  # morphing robustness (issue 34)
+    tasks, shared = morph_sweep.morph_tasks(spec) if morph else sweep_tasks(spec)
     t0 = time.perf_counter()
     by, ran = run_records(tasks, shared, records, engine, on_record)
     mine = [by[t.key] for t in tasks if t.key in by]
     flat = [{**r, **r.get("params", {})} for r in mine]
-    rows = summary_rows(flat, spec.case_fields, METRICS)
+    rows = morph_sweep.morph_table(mine) if morph else summary_rows(flat, spec.case_fields, METRICS)
     tables = write_table(owner.path / "table", rows, owner)
     failed = [r for r in mine if r.get("status") != "ok"]
     summary = {
