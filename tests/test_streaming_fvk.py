@@ -12,8 +12,8 @@ from wingopt.estimation.realistic import RealisticSettings, realistic_identify
 from wingopt.estimation.streaming import StreamingEstimator, StreamSettings
 from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator, NonlinearStreamSettings
 from wingopt.membrane import MembraneModel, bubble
+from wingopt.membrane.forward import ModalSample as FvKSample
 from wingopt.membrane.modal.fvk import FvKModal
-from wingopt.membrane.modal.fvk_step import FvKSample
 from wingopt.problem import load_problem
 from wingopt.workflows.protocols import simulate_case
 from wingopt.workflows.stream import follow

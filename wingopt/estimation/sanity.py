@@ -16,6 +16,7 @@ Thresholds are stated next to each check with the measurement that motivated the
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
@@ -24,6 +25,7 @@ import scipy.sparse.linalg as spla
 
 from wingopt.errors import InputError
 from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
+from wingopt.measurements.clock import IrregularSampling, jitter_note, on_clock
 
 __all__ = [
     "RESERVED_NAMES",
@@ -91,7 +93,7 @@ def as_measurements(data, names: Sequence[str]):
     if isinstance(data, Measurements):
         if tuple(data.sensor_names) != tuple(names):
             raise InputError(f"data: sensors {list(data.sensor_names)}: expected the problem's {list(names)}")
-        return data
+        return data if data.simulated or data.count < 2 else on_uniform_clock(data)
     expected = "expected a CSV path, a Measurements or an array of rows t, " + ", ".join(names)
     try:
         raw = np.asarray(data)
@@ -113,7 +115,21 @@ def as_measurements(data, names: Sequence[str]):
         raise InputError("data: the time column has NaN or inf: every row needs a time")
     if np.isinf(arr[:, 1:]).any():
         raise InputError("data: a sensor value is infinite: expected finite numbers (NaN for missing)")
-    return Measurements(t=arr[:, 0], values=arr[:, 1:], sensor_names=tuple(names), source="array")
+    return on_uniform_clock(Measurements(t=arr[:, 0], values=arr[:, 1:], sensor_names=tuple(names), source="array"))
+
+
+def on_uniform_clock(meas):
+    """``meas`` on its uniform clock (:func:`~wingopt.measurements.clock.on_clock`), the checks of the
+    CSV reader: rounded or jittered stamps (at most 10 % of a step) read as the fitted clock and
+    reported (``meas.clock``, a data check's warning), gaps filled with missing rows, larger
+    irregularity refused (an array whose time column jitters by 20 % passed without a word)."""
+    try:
+        clock, t, values = on_clock(meas.t, meas.values)
+    except IrregularSampling as exc:
+        raise InputError(f"{meas.source or 'data'}: row {exc.position}: {exc.message}") from None
+    if not clock.jittered and values.shape == meas.values.shape:
+        return meas
+    return dataclasses.replace(meas, t=t, values=values, clock=clock.as_dict() if clock.jittered else None)
 
 
 def check_sensor_names(names: Sequence[str], where: str = "sensors") -> None:
@@ -158,7 +174,12 @@ def check_time_step(dt: float, source: str = "data") -> None:
         scale = {"ms": 1e-3, "µs": 1e-6, "ns": 1e-9}[unit]
         raise InputError(
             f"{source}: time step {dt:g} s is far longer than the membrane's dynamics (first mode ~30 Hz): "
-            f"are the times in {unit}? Write t in seconds (multiply by {scale:g}: step {dt * scale:g} s)"
+            f"are the times in {unit}? "
+            + (
+                f"Give --time-unit {unit.replace('µ', 'u')} (step {dt * scale:g} s)"
+                if unit != "ns"
+                else f"Write t in seconds (step {dt * scale:g} s)"
+            )
         )
     if dt < MIN_DT:
         raise InputError(
@@ -313,11 +334,14 @@ def noise_warnings(values: np.ndarray, sigma: np.ndarray, names: Sequence[str]) 
     ]
 
 
-def record_checks(model, meas, reference_load: float) -> list[str]:
-    """Refusals and warnings before a record is identified; returns the warnings."""
+def record_checks(model, meas, reference_load: float, frames: bool = False) -> list[str]:
+    """Refusals and warnings before a record is identified; returns the warnings. ``frames``: the
+    record's DIC frames are the data (the full field: a steady answer from a single frame), so the
+    sensor series' minimum length does not apply."""
     names = meas.sensor_names
     check_sensor_names(names)
-    check_record_length(meas)
+    if not frames:
+        check_record_length(meas)
     if meas.count >= 2:
         check_time_step(float(np.median(np.diff(meas.t))), meas.source or "data")
     check_stretch_sign(meas.values, names, meas.source or "data")
@@ -326,6 +350,8 @@ def record_checks(model, meas, reference_load: float) -> list[str]:
         # The package wrote these values itself, in its own unit: a "values in percent?" hint on
         # them (the protocol's L2 peaks above the pre-strain) would only teach users to ignore it.
         warnings = []
+    if meas.clock is not None:
+        warnings.append(jitter_note(meas.source or "data", meas.clock))
     load = abs(reference_load) if reference_load else 200.0
     corr = sensitivity_correlation(model, load)
     problem = model.problem

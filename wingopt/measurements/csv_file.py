@@ -8,8 +8,10 @@ and counted.
 
 Checks, each a one-line :class:`~wingopt.errors.DataFileError` (exit code 2 on the command line):
 empty file or no data rows, missing ``t`` or sensor columns, a non-numeric cell (with its line),
-a missing time, times not strictly increasing, irregular sampling (steps that are not whole
-multiples of the typical step; whole multiples are gaps and are filled with missing rows), and
+a missing time, times not strictly increasing, irregular sampling (stamps more than 10 % of a step
+off the best uniform clock, :mod:`~wingopt.measurements.clock`: rounded or jittered stamps within
+it are read as that clock and reported; whole multiples of the step are gaps and are filled with
+missing rows), and
 values that cannot be the dimensionless stretch ``s = alpha/(2A) ∫ |grad w|^2`` (a hint about
 units: percent or microstrain).
 
@@ -22,6 +24,7 @@ from __future__ import annotations
 
 import csv
 import io
+import logging
 import math
 import os
 import re
@@ -34,17 +37,18 @@ import numpy as np
 from wingopt.errors import DataFileError
 from wingopt.measurements.channels import CONVENTION as CONVENTION_TEXT
 from wingopt.measurements.channels import ChannelMap
+from wingopt.measurements.clock import IrregularSampling, uniform_clock
 from wingopt.measurements.series import Measurements
 
 __all__ = ["CsvReport", "read_measurements", "MISSING_TOKENS", "MAX_STRETCH"]
+
+log = logging.getLogger(__name__)
 
 MISSING_TOKENS = frozenset({"", "nan", "na", "n/a", "null", "none", "-"})
 
 MAX_STRETCH = 0.5
 """Largest plausible stretch output: ``s = 0.5`` means surface slopes of 45° on average over a
 sensor, far beyond a pre-tensioned membrane; larger values are almost surely other units."""
-
-_JITTER = 0.01  # relative deviation of a time step from a whole multiple of dt that is tolerated
 
 
 @dataclass
@@ -58,9 +62,13 @@ class CsvReport:
     gap_rows_filled: int
     ignored_columns: list[str] = field(default_factory=list)
     channels: dict | None = None
+    clock: dict | None = None
+    """The fitted clock of jittered stamps (:func:`~wingopt.measurements.clock.uniform_clock`)."""
 
     def as_dict(self) -> dict:
         extra = {} if self.channels is None else {"channels": self.channels}
+        if self.clock is not None:
+            extra["clock"] = self.clock
         return {
             "file": self.path,
             "rows": self.rows,
@@ -286,28 +294,24 @@ def _finish(name, t, vals, line_numbers, sensor_names, ignored, channels, given)
         raise DataFileError(
             f"{name}:{line(k)}: t = {float(t[k])!r} after {float(t[k - 1])!r}: expected strictly increasing times"
         )
-    dt = float(np.median(steps))
-    ratio = steps / dt
-    whole = np.rint(ratio)
-    if np.any(np.abs(ratio - whole) > _JITTER):
-        k = int(np.argmax(np.abs(ratio - whole))) + 1
-        raise DataFileError(
-            f"{name}:{line(k)}: irregular sampling (step {steps[k - 1]:.6g} s, typical {dt:.6g} s): "
-            "resample the data to a uniform time step"
-        )
-    # Whole-multiple steps are gaps: fill them with missing rows so the time grid is uniform. A step
+    try:
+        clock = uniform_clock(t)
+    except IrregularSampling as exc:
+        raise DataFileError(f"{name}:{line(exc.position)}: {exc.message}") from None
+    dt, index, n = clock.dt, clock.index, clock.count
+    # Whole-multiple steps are gaps: filled with missing rows so the time grid is uniform. A step
     # that is a huge multiple would allocate the whole gap: refuse it (e.g. ms and s mixed up).
-    index = np.concatenate([[0], np.cumsum(whole.astype(np.int64))])
-    n = int(index[-1]) + 1
     if n > 10 * t.size + 1000:
-        k = int(np.argmax(whole)) + 1
+        k = int(np.argmax(np.diff(index))) + 1
         raise DataFileError(
-            f"{name}:{line(k)}: a gap of {int(whole[k - 1])} samples (step {steps[k - 1]:.6g} s, typical {dt:.6g} s): "
-            "expected a record with few missing samples"
+            f"{name}:{line(k)}: a gap of {int(index[k] - index[k - 1])} samples (step {steps[k - 1]:.6g} s, typical "
+            f"{dt:.6g} s): expected a record with few missing samples"
         )
+    if clock.jittered:
+        log.info("%s", clock.note(name))  # the data checks report it (Measurements.clock)
     grid_vals = np.full((n, len(sensor_names)), np.nan)
     grid_vals[index] = vals
-    grid_t = t[0] + dt * np.arange(n)
+    grid_t = clock.grid
     finite = grid_vals[np.isfinite(grid_vals)]
     if finite.size == 0:
         raise DataFileError(f"{name}: every sensor value is missing")
@@ -318,9 +322,17 @@ def _finish(name, t, vals, line_numbers, sensor_names, ignored, channels, given)
             f"(typically 1e-4..1e-1); {units_hint(channels)}"
         )
     missing_rows = int(np.count_nonzero(np.isnan(vals).any(axis=1)))
-    meas = Measurements(t=grid_t, values=grid_vals, sensor_names=tuple(sensor_names), source=name)
+    meas = Measurements(t=grid_t, values=grid_vals, sensor_names=tuple(sensor_names), source=name,
+                        clock=clock.as_dict() if clock.jittered else None)  # fmt: skip
     report = CsvReport(
-        name, int(t.size), dt, missing_rows, int(n - t.size), ignored, channels.as_dict(sensor_names) if given else None
+        name,
+        int(t.size),
+        dt,
+        missing_rows,
+        int(n - t.size),
+        ignored,
+        channels.as_dict(sensor_names) if given else None,
+        clock.as_dict() if clock.jittered else None,
     )
     return meas, report
 

@@ -19,6 +19,7 @@ import numpy as np
 
 from wingopt.errors import DataFileError
 from wingopt.measurements.channels import ChannelMap
+from wingopt.measurements.clock import IrregularSampling, RunningClock
 from wingopt.measurements.csv_file import MAX_STRETCH, _cell, _ignored, header_columns, units_hint
 
 __all__ = ["CsvRowParser", "END_MARKER"]
@@ -27,7 +28,6 @@ END_MARKER = "# end"
 """A line ``# end`` (case and inner spaces free) ends the stream."""
 
 _END = re.compile(r"#\s*end\s*", re.IGNORECASE)
-_JITTER = 0.01  # as the batch reader: relative deviation of a step from a whole multiple of dt
 
 MAX_GAP_SAMPLES = 100_000
 """Longest gap (in samples) a stream may have: filling it costs one estimator step per sample; a
@@ -46,6 +46,10 @@ class CsvRowParser:
     channels : ChannelMap, optional
         The time and sensor columns and each sensor's gain and offset (default: ``t`` and the
         sensor names, stretch as it is).
+    warm_up : int
+        Rows held back while the sample clock is found (:class:`RunningClock`): with it, stamps
+        as loggers write them (rounded, jittered up to 10 % of a step) are read; without it (0) each
+        row is handed on at once and the stamps must be the clock itself (within 1 %).
 
     Attributes
     ----------
@@ -56,7 +60,9 @@ class CsvRowParser:
     ignored_columns : list of str
     """
 
-    def __init__(self, sensor_names, source: str = "<stream>", channels: ChannelMap | None = None) -> None:
+    def __init__(
+        self, sensor_names, source: str = "<stream>", channels: ChannelMap | None = None, warm_up: int = 0
+    ) -> None:
         self.sensor_names = tuple(sensor_names)
         if channels is not None and not isinstance(channels, ChannelMap):
             raise DataFileError(f"channels = {channels!r}: expected a wingopt.measurements.ChannelMap or None")
@@ -70,8 +76,9 @@ class CsvRowParser:
         self._header_names: list[str] = []
         self._it = 0
         self._ncol = 0
-        self._t0 = self._dt = None
-        self._index = 0  # sample index of the last row on the uniform grid
+        self._clock = RunningClock(warm_up=warm_up)  # stamps as loggers write them, on one uniform clock
+        self._clock_index = -1  # place of the last row handed on, on the uniform grid
+        self._held: list[tuple[int, np.ndarray]] = []
         self._t_last = None
         self._new_file = False
 
@@ -83,7 +90,12 @@ class CsvRowParser:
 
     @property
     def dt(self) -> float | None:
-        return self._dt
+        return self._clock.dt
+
+    @property
+    def clock(self) -> dict | None:
+        """The fitted clock (:meth:`RunningClock.as_dict`) when the stamps jitter about it, else ``None``."""
+        return self._clock.as_dict() if self._clock.jittered else None
 
     def feed(self, line: str) -> list[tuple[float, np.ndarray]]:
         """Parse one line (without its newline); returns the samples it yields (gap rows first)."""
@@ -138,36 +150,41 @@ class CsvRowParser:
                 f"(typically 1e-4..1e-1); {units_hint(self.channels)}"
             )
         out: list[tuple[float, np.ndarray]] = []
-        if self._t_last is None:
-            self._t0, self._index = t, 0
-        else:
+        if self._t_last is not None:
             step = t - self._t_last
             if not step > 0:
                 raise DataFileError(
                     f"{name}:{ln}: t = {t!r} after {self._t_last!r}: expected strictly increasing times"
                 )
-            if self._dt is None:
-                self._dt = step
-            ratio = step / self._dt
-            if not ratio <= MAX_GAP_SAMPLES:
+            if self._clock.dt is not None and not step / self._clock.dt <= MAX_GAP_SAMPLES:
                 raise DataFileError(
-                    f"{name}:{ln}: t = {t!r} after {self._t_last!r}: a gap of {ratio:.3g} samples (more than "
-                    f"{MAX_GAP_SAMPLES}): expected a stream with short gaps (was the clock reset, or the unit changed?)"
+                    f"{name}:{ln}: t = {t!r} after {self._t_last!r}: a gap of {step / self._clock.dt:.3g} samples "
+                    f"(more than {MAX_GAP_SAMPLES}): expected a stream with short gaps (was the clock reset, or the "
+                    "unit changed?)"
                 )
-            whole = round(ratio)
-            if whole < 1 or abs(ratio - whole) > _JITTER:
-                raise DataFileError(
-                    f"{name}:{ln}: irregular sampling (step {step:.6g} s, sample period {self._dt:.6g} s): "
-                    "resample the data to a uniform time step"
-                )
-            for _ in range(whole - 1):  # a gap: missing rows on the uniform grid
-                self._index += 1
-                self.gap_rows += 1
-                out.append((self._t0 + self._index * self._dt, np.full(len(self._cols), np.nan)))
-            self._index += 1
+        try:
+            index = self._clock.place(t)
+        except IrregularSampling as exc:
+            raise DataFileError(f"{name}:{ln}: {exc.message}") from None
         self._t_last = t
         self.rows += 1
         self.missing_rows += int(np.isnan(vals).any())
-        t_grid = t if self._dt is None else self._t0 + self._index * self._dt
-        out.append((t_grid, vals))
+        # The first rows wait until the clock is known (its first step may be a rounded 3.2 ms of 3.33):
+        # the estimator takes its sample period from the first two times it is given.
+        self._held.append((index, vals))
+        if self._clock.count < self._clock.warm_up:
+            return out
+        return out + self.flush()
+
+    def flush(self) -> list[tuple[float, np.ndarray]]:
+        """The rows held back while the clock was being found, on its uniform grid (gap rows filled);
+        call it when the input ends."""
+        out: list[tuple[float, np.ndarray]] = []
+        for index, vals in self._held:
+            for gap in range(self._clock_index + 1, index):  # a gap: missing rows on the uniform grid
+                self.gap_rows += 1
+                out.append((self._clock.time(gap), np.full(len(self._cols), np.nan)))
+            self._clock_index = index
+            out.append((self._clock.time(index), vals))
+        self._held.clear()
         return out

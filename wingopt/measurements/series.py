@@ -40,6 +40,9 @@ class Measurements:
     simulated : bool
         The package simulated these values (:mod:`wingopt.membrane.truth`): they are in its own
         units, so the unit and scale hints of :mod:`wingopt.estimation.sanity` do not apply.
+    clock : dict, optional
+        The stamps were jittered and read as a uniform clock: its fitted step and largest deviation
+        (:meth:`~wingopt.measurements.clock.Clock.as_dict`); the data checks report it.
     """
 
     t: np.ndarray
@@ -48,6 +51,7 @@ class Measurements:
     noise_std: np.ndarray | None = None
     source: str = ""
     simulated: bool = False
+    clock: dict | None = None
 
     def __post_init__(self) -> None:
         t, v = _real("t", self.t), _real("values", self.values)

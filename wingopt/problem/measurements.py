@@ -9,7 +9,13 @@
     gain = { S1 = 1.0e-5, S2 = 1.0e-5, S3 = 1.1e-5, S4 = 0.9e-5 }  # stretch per raw unit (or one number for all)
     offset = { S1 = 250.0, S2 = 248.5, S3 = 251.0, S4 = 250.2 }    # raw reading at zero stretch (or one number)
 
-``stretch = gain * (raw - offset)`` (:mod:`wingopt.measurements.channels`). Every key is optional;
+    acquisition = "delta-sigma"        # how the DAQ sampled: "point" (default), "delta-sigma", or a table:
+    # acquisition = { kind = "butterworth", order = 4, cutoff_hz = 100.0 }
+    # acquisition = { kind = "fir", passband = 0.4, stopband = 0.6, taps = 255 }
+
+``stretch = gain * (raw - offset)`` (:mod:`wingopt.measurements.channels`). ``acquisition`` is the
+DAQ's anti-aliasing filter (:class:`~wingopt.measurements.acquisition.Acquisition`): the spectral
+fits use its transfer function. Every key is optional;
 sensors not named keep their own column name, gain 1 and offset 0. ``wingopt identify --columns
 --gain --offset --time-column --time-unit`` override the table key by key. A bad value (a name that
 is not a sensor, a zero or non-finite gain, a column used twice) is one line naming it.
@@ -18,10 +24,11 @@ is not a sensor, a zero or non-finite gain, a column used twice) is one line nam
 from __future__ import annotations
 
 from wingopt.errors import InputError, ProblemFileError
+from wingopt.measurements.acquisition import Acquisition
 from wingopt.measurements.channels import ALL, TIME_UNITS, ChannelMap
 from wingopt.problem.fields import Table
 
-__all__ = ["measurements_from_table"]
+__all__ = ["measurements_from_table", "measurements_and_acquisition"]
 
 
 def _mapping(t: Table, key: str, names: tuple[str, ...], number: bool):
@@ -48,7 +55,25 @@ def _mapping(t: Table, key: str, names: tuple[str, ...], number: bool):
 
 def measurements_from_table(t: Table, sensor_names) -> ChannelMap:
     """Validate a ``[measurements]`` table against the problem's sensors (unknown keys refused)."""
+    return measurements_and_acquisition(t, sensor_names)[0]
+
+
+def _acquisition(t: Table) -> Acquisition | None:
+    if not t.has("acquisition"):
+        return None
+    value = t.peek("acquisition")
+    try:
+        acq = Acquisition.from_value(value)
+    except InputError as exc:
+        raise ProblemFileError(f"{t.source}: [measurements] {exc}") from None
+    t._take("acquisition", None, "")
+    return acq
+
+
+def measurements_and_acquisition(t: Table, sensor_names) -> tuple[ChannelMap, Acquisition | None]:
+    """The ``[measurements]`` table's channel map and its declared acquisition (``None``: undeclared)."""
     names = tuple(sensor_names)
+    acquisition = _acquisition(t)
     time = t.string("time", "t")
     unit = t.string("time_unit", "s", choices=tuple(TIME_UNITS))
     columns = _mapping(t, "columns", names, number=False)
@@ -56,6 +81,7 @@ def measurements_from_table(t: Table, sensor_names) -> ChannelMap:
     offset = _mapping(t, "offset", names, number=True)
     t.finish()
     try:
-        return ChannelMap(time, unit, columns, gain, offset, declared_in=f"{t.source} [measurements]").check(names)
+        cmap = ChannelMap(time, unit, columns, gain, offset, declared_in=f"{t.source} [measurements]").check(names)
+        return cmap, acquisition
     except InputError as exc:
         raise ProblemFileError(f"{t.source}: [measurements] {exc}") from None

@@ -6,10 +6,11 @@ import dataclasses
 from dataclasses import dataclass
 
 from wingopt.errors import InputError
+from wingopt.measurements.acquisition import Acquisition
 from wingopt.measurements.channels import ChannelMap
 from wingopt.problem.dic import DICSettings, dic_from_table
 from wingopt.problem.fields import Table
-from wingopt.problem.measurements import measurements_from_table
+from wingopt.problem.measurements import measurements_and_acquisition
 
 __all__ = ["MembraneMaterial", "StretchSensorSpec", "IdentificationSettings", "MembraneProblem", "from_table"]
 
@@ -65,7 +66,9 @@ class IdentificationSettings:
     (``wingopt calibrate``) writes its posterior here: ``prestrain = [ex, ey]`` with
     ``prestrain_std = [sx, sy]`` (1-sigma) and ``prestrain_correlation`` (a ringing record fixes a
     combination of the two far better than either: correlation near -1), ``damping = d`` with
-    ``damping_std`` (1-sigma of the factor), and ``calibration`` (where they came from); they are
+    ``damping_std`` (1-sigma of the factor), and ``calibration`` (where they came from;
+    ``calibration_misfit``: the chi-square per datum of a calibration fit that did not explain its
+    record, so that every run on this prior says so); they are
     then the prior.
 
     ``leading_edge`` (``"x0"``: the flow meets the wing at ``x = 0``; ``"x1"``: at ``x = W``; unset:
@@ -86,6 +89,7 @@ class IdentificationSettings:
     damping_std: float | None = None
     prestrain_correlation: float = 0.0
     calibration: str = ""
+    calibration_misfit: float | None = None
     leading_edge: str | None = None
     pressure_prior: str = "auto"
 
@@ -122,6 +126,7 @@ class MembraneProblem:
     source: str = "<memory>"
     dic: DICSettings | None = None
     measurements: ChannelMap | None = None
+    acquisition: Acquisition | None = None  # [measurements] acquisition: the DAQ's filter (None: undeclared)
 
     kind = "membrane"
 
@@ -242,6 +247,7 @@ def from_table(root: Table, name: str) -> MembraneProblem:
     damping_std = ident.number("damping_std", None, positive=True)
     correlation = ident.number("prestrain_correlation", 0.0, lo=-0.999, hi=0.999)
     calibration = ident.string("calibration", "")
+    calibration_misfit = ident.number("calibration_misfit", None, positive=True)
     leading_edge = ident.string("leading_edge", None, choices=("x0", "x1")) if ident.has("leading_edge") else None
     pressure_prior = ident.string("pressure_prior", "auto", choices=PRESSURE_PRIORS)
     noise = None
@@ -252,7 +258,8 @@ def from_table(root: Table, name: str) -> MembraneProblem:
             noise = (ident.number("noise_std", positive=True),)
     ident.finish()
     dic = dic_from_table(root.table("dic")) if root.has("dic") else None
-    channels = measurements_from_table(root.table("measurements"), names) if root.has("measurements") else None
+    has = root.has("measurements")
+    channels, acquisition = measurements_and_acquisition(root.table("measurements"), names) if has else (None, None)
     root.finish()
     return MembraneProblem(
         width=width,
@@ -274,6 +281,7 @@ def from_table(root: Table, name: str) -> MembraneProblem:
             damping_std=damping_std,
             prestrain_correlation=correlation,
             calibration=calibration,
+            calibration_misfit=calibration_misfit,
             leading_edge=leading_edge,
             pressure_prior=pressure_prior,
         ),
@@ -281,4 +289,5 @@ def from_table(root: Table, name: str) -> MembraneProblem:
         source=root.source,
         dic=dic,
         measurements=channels,
+        acquisition=acquisition,
     )

@@ -196,6 +196,8 @@ def _calibrated_fields(run: CalibrationRun) -> dict:
         "calibration": f"{Path(run.source).name}: {run.measurements.count} samples, chi-square per datum "
         f"{c.chi2_per_datum:.2f}{'' if c.adequate else ' (inadequate)'}",
     }
+    if not c.adequate:  # every run on this prior says so (identify's data check)
+        ident["calibration_misfit"] = round(float(c.chi2_per_datum), 3)
     return ident
 
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +31,7 @@ from wingopt.estimation.options import IdentifyOptions
 from wingopt.estimation.registry import FRAME_METHODS, check_options, resolve
 from wingopt.estimation.result import IdentificationResult
 from wingopt.estimation.runners import build, check_settings
-from wingopt.measurements import ChannelMap, Measurements
+from wingopt.measurements import Acquisition, ChannelMap, Measurements
 from wingopt.measurements.dic import DICFrames
 from wingopt.membrane import MembraneModel, TruthRecord
 from wingopt.problem import load_problem
@@ -183,6 +183,7 @@ def identify(
     lam: LambdaChoice | None = None,
     noise: float | None = None,
     channels: ChannelMap | None = None,
+    acquisition: Acquisition | str | None = None,
     **simulated,
 ) -> IdentifyRun:
     """Estimate the load of a membrane problem from a simulated (``load``) or measured (``data``) record.
@@ -224,6 +225,9 @@ def identify(
     initial_load, noise_std, lam :
         Shorthands for the same fields of ``options``: the sign prior (Pa), the sensor noise std
         (sensor units; default: estimated from the data) and the lambda choice.
+    acquisition : Acquisition or str, optional
+        How the DAQ sampled the record (a kind, e.g. ``"delta-sigma"``): overrides the problem's
+        ``[measurements] acquisition`` (:mod:`wingopt.measurements.acquisition`).
     noise : float, optional
         No longer accepted (it was a fraction, the command line's a percentage): an ``InputError`` names
         ``noise_percent`` (simulated noise) and ``noise_std`` (the sensors' noise).
@@ -239,6 +243,8 @@ def identify(
             "peak, as wingopt identify --noise 1) or noise_std (the sensors' noise std, sensor units)"
         )
     problem = _membrane_problem(problem)
+    if acquisition is not None:  # the DAQ's filter, as [measurements] acquisition declares it
+        problem = replace(problem, acquisition=Acquisition.from_value(acquisition))
     if source is None:
         source = data_source(load=load, data=data, dic=dic, channels=channels, **simulated)
     elif any(v is not None for v in (load, data, dic, channels, *simulated.values())):
@@ -257,6 +263,19 @@ def identify(
         problem = problem.with_mesh(nodes)
     record = _read(problem, source, spec, opts, max_memory)
     return _estimate(record, spec, record.options, settings)
+
+
+def calibration_checks(problem) -> list[str]:
+    """A warning when the run's prestrain prior comes from a calibration that misfit its record."""
+    ident = problem.identification
+    if ident.calibration_misfit is None:
+        return []
+    return [
+        f"[calibration] this run's prestrain prior comes from a calibration that did not explain its record "
+        f"(chi-square per datum {ident.calibration_misfit:.3g}; {ident.calibration or 'no source named'}): its "
+        "band was widened for the misfit, but a model-form error in it moves this run's lift too; recalibrate "
+        "with a release or pluck the model follows (docs/tunnel.md)"
+    ]
 
 
 def _membrane_problem(problem):
@@ -297,9 +316,14 @@ def _estimate(record: SourceRecord, spec, opts: IdentifyOptions, settings) -> Id
     # DIC: the first frame's shape may be the initial deflection, so the model is the record's problem's
     membrane = estimator_model(problem) if record.frames is None else MembraneModel.from_problem(problem)
     prior = opts.initial_load if opts.initial_load is not None else problem.identification.initial_load
-    warnings = sanity.sourced("data check", sanity.record_checks(membrane, meas, prior))
+    full_field = record.frames is not None and spec.method in FRAME_METHODS  # the frames are the data
+    warnings = sanity.sourced("data check", sanity.record_checks(membrane, meas, prior, frames=full_field))
+    warnings += calibration_checks(problem)
     t0 = time.perf_counter()
-    progress.info("%s on %d samples of %d sensors", spec.label, meas.count, len(meas.sensor_names))
+    if full_field:
+        progress.info("%s on %d frames x %d points", spec.label, *np.shape(record.frames.w))
+    else:
+        progress.info("%s on %d samples of %d sensors", spec.label, meas.count, len(meas.sensor_names))
     result = build(spec, membrane, opts, truth=record.case, settings=settings, frames=record.frames).run(meas)
     wall = time.perf_counter() - t0
     warnings += sanity.sourced("fit check", sanity.fit_checks(membrane, meas, result, sanity.used_sigma(meas, result)))

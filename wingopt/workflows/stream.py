@@ -23,6 +23,7 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation import sanity
+from wingopt.measurements.clock import RunningClock, jitter_note
 from wingopt.measurements.lines import LineSource
 from wingopt.status import RunStatus
 
@@ -141,7 +142,7 @@ def follow(
     method = f"{spec.method}-stream"
     name = source or "<stdin>"
     channels = channels if channels is not None else problem.measurements
-    parser = CsvRowParser(problem.sensor_names, name, channels)
+    parser = CsvRowParser(problem.sensor_names, name, channels, warm_up=RunningClock.WARM_UP)
     cpu, wall = LatencyStats(), LatencyStats()
     bad, first_bad = 0, None
     t_start = time.perf_counter()
@@ -151,31 +152,38 @@ def follow(
     with writer as tmp, LiveCsv(tmp / "lift.csv", COLUMNS) as live:
         log.info("streaming estimates appended to %s", tmp / "lift.csv")
         try:
+
+            def push(t, y) -> None:
+                nonlocal bad, first_bad
+                ay = np.abs(np.asarray(y, dtype=float))
+                if np.isfinite(ay).any() and np.nanmax(ay) > peak[0]:
+                    j = int(np.nanargmax(ay))
+                    peak[:] = [float(ay[j]), problem.sensor_names[j]]
+                c0, w0 = time.thread_time(), time.perf_counter()
+                e = est.push(t, y)
+                cpu.add(time.thread_time() - c0)
+                wall.add(time.perf_counter() - w0)
+                row = (e.t, e.lift, e.lift_std, e.chi2_per_datum, int(e.adequate), e.phase)
+                live.append(row)
+                if not e.adequate and e.phase == "tracking":
+                    bad += 1
+                    first_bad = e.t if first_bad is None else first_bad
+                if on_estimate is not None:
+                    on_estimate(e.k, row)
+
             for line in lines:
                 if lines.take_restart():
                     parser.new_file()
                 for t, y in parser.feed(line):
-                    ay = np.abs(np.asarray(y, dtype=float))
-                    if np.isfinite(ay).any() and np.nanmax(ay) > peak[0]:
-                        j = int(np.nanargmax(ay))
-                        peak[:] = [float(ay[j]), problem.sensor_names[j]]
-                    c0, w0 = time.thread_time(), time.perf_counter()
-                    e = est.push(t, y)
-                    cpu.add(time.thread_time() - c0)
-                    wall.add(time.perf_counter() - w0)
-                    row = (e.t, e.lift, e.lift_std, e.chi2_per_datum, int(e.adequate), e.phase)
-                    live.append(row)
-                    if not e.adequate and e.phase == "tracking":
-                        bad += 1
-                        first_bad = e.t if first_bad is None else first_bad
-                    if on_estimate is not None:
-                        on_estimate(e.k, row)
+                    push(t, y)
                 if parser.ended:
                     lines.reason = "end marker"
                     break
                 if stop.get("signal"):
                     lines.reason = stop["signal"]
                     break
+            for t, y in parser.flush():  # a record shorter than the clock's warm-up
+                push(t, y)
         except BaseException as exc:  # noqa: BLE001 - whatever stops the stream, the record so far is kept
             # A bad row, a numerical failure, an interrupt: the estimates so far (hours of them,
             # maybe) are written with the summary, then the error is raised.
@@ -278,7 +286,9 @@ def _summary(est, parser, reason, cpu, wall, bad, first_bad, source, problem, ro
     last = est.last
     finite = last is not None and np.isfinite(last.lift)
     info = est.info()
-    warnings = []
+    warnings = list(info.get("warnings", []))  # the estimator's own (a recovered numerical failure)
+    if parser.clock is not None:  # stamps as a logger writes them, read on one uniform clock
+        warnings.append(jitter_note(source or "the stream", parser.clock))
     if est.count == 0:
         warnings.append("no data rows received")
     elif info["phase"] != "tracking":
@@ -313,6 +323,7 @@ def _summary(est, parser, reason, cpu, wall, bad, first_bad, source, problem, ro
             "gap_rows_filled": parser.gap_rows,
             "ignored_columns": parser.ignored_columns,
             "dt_s": parser.dt,
+            "clock": parser.clock,
         },
         "status": str(_status(finite, info, last)),
         "lift_N": float(last.lift) if finite else None,

@@ -2,7 +2,7 @@
 
 A wing in steady flow is loaded by ``(1 + eps(t)) P(x, y)``: the mean pressure (the static fit of
 :mod:`.steady`) times a stationary load factor, the flow's buffeting. Linearised about the static
-state ``q̄`` of the modal FvK model (:class:`~wingopt.membrane.modal.fvk.FvKModal`, every mode of the
+state ``q̄`` of the modal FvK model (:func:`~wingopt.membrane.forward.modal_model`, every mode of the
 mesh, FvK's cubic stiffness on the lowest ``r``), the sensors' fluctuation is ``eps`` through
 
     h(w) = J (K_t - w^2 + i w C)^-1 u,    J_i = 2 q̄^T Ĉ_i,   u = Phi^T P (the mean load's modal force)
@@ -13,17 +13,21 @@ and the prestress damping ``C = d diag(gamma/rho h + eta (Tx0 kx + Ty0 ky))``. T
 frequency depends on the tension *and* the load; the mean fixes the load for a given tension; the two
 together identify the tension. The sampled sensors' cross-spectral matrix (two-sided, units²/Hz) is
 
-    S(f) = sum_{|k| <= aliases} S_eps(f + k fs) h h^H + dt diag(sigma^2),  S_eps = A (1 + (f/fc)^2)^-n
+    S(f) = sum_{|k| <= aliases} |H_k|^2 S_eps(f + k fs) h h^H + dt g(f) diag(sigma^2),  S_eps = A (1 + (f/fc)^2)^-n
 
-(the forcing's spectrum and the noise floor are unknown). Its fit to the binned periodograms ``Ī_b``
-(:mod:`.spectra`) is Whittle's likelihood ``sum_b n_b [log det S_b + tr(S_b^-1 Ī_b)]``. Fisher scoring
-on it is Gauss–Newton on the residuals ``sqrt(n_b) vec(W_b (Ī_b - S_b(theta)) W_b^H)`` with the weights
-``W_b = chol(S_b)^-1`` frozen at a point: their gradient there is Whittle's score and ``J^T J`` its
-expected information. :class:`BuffetingProblem` is that residual problem (with the static rows of
-:class:`~.steady.SteadyProblem` and the priors) for :func:`~.solver.levenberg_marquardt`; the driver
-(:mod:`.buffeting_fit`) refreezes the weights after every step (iteratively reweighted: the fixed point
-is Whittle's estimate). Every derivative is analytic: the static sensitivities by implicit
-differentiation, the transfer's by ``dh = dJ x + lambda^T (du - (dK_t + i w dC) x)``
+(the forcing's spectrum and the noise floor are unknown). ``H_k = H(f + k fs)`` is the DAQ's anti-
+aliasing filter (:class:`~wingopt.measurements.acquisition.Acquisition`, ``SpectralData.
+acquisition``): 1 for point sampling, 0 on the aliases a digital filter removes; the noise comes
+before the filter, ``g = sum_k |H_k|^2`` (1 for point sampling: wideband noise folded back). Its fit
+to the binned periodograms ``Ī_b`` (:mod:`.spectra`) is Whittle's likelihood ``sum_b n_b [log det
+S_b + tr(S_b^-1 Ī_b)]``. Fisher scoring on it is Gauss–Newton on the residuals ``sqrt(n_b) vec(W_b
+(Ī_b - S_b(theta)) W_b^H)`` with the weights ``W_b = chol(S_b)^-1`` frozen at a point: their
+gradient there is Whittle's score and ``J^T J`` its expected information. :class:`BuffetingProblem`
+is that residual problem (with the static rows of :class:`~.steady.SteadyProblem` and the priors)
+for :func:`~.solver.levenberg_marquardt`; the driver (:mod:`.buffeting_fit`) refreezes the weights
+after every step (iteratively reweighted: the fixed point is Whittle's estimate). Every derivative
+is analytic: the static sensitivities by implicit differentiation, the transfer's by ``dh = dJ x +
+lambda^T (du - (dK_t + i w dC) x)``
 (``x = G u``, ``lambda_i = G J_i^T``; ``G`` is complex symmetric).
 
 Unknowns (scaled, every prior ``N(0, 1)``): the steady problem's (load shapes, free prestrains), the
@@ -143,6 +147,20 @@ class BuffetingProblem:
         ks = np.arange(-self.aliases, self.aliases + 1)
         return 2 * np.pi * (self.spectra.freq[:, None] + ks[None, :] / self.spectra.dt)
 
+    @cached_property
+    def filter_power(self) -> np.ndarray:
+        """``|H(f + k fs)|^2`` ``(B, 2 aliases + 1)``: the acquisition's filter on each bin's aliases
+        (ones for point sampling; zeros where a digital filter removes an alias)."""
+        return self.spectra.acquisition.power(self.omega / (2 * np.pi), 1.0 / self.spectra.dt)
+
+    @cached_property
+    def noise_shape(self) -> np.ndarray:
+        """The noise floor's shape ``(B,)``: white for point sampling (wideband noise folded back), the
+        filter's aliased power otherwise (the sensors' noise comes before the filter)."""
+        if self.spectra.acquisition.point:
+            return np.ones(self.spectra.bins)
+        return self.filter_power.sum(axis=1)
+
     # -- the structure ----------------------------------------------------------------------
     def structure(self, theta: np.ndarray, derivatives: bool = True) -> dict:
         """Static state, static outputs and the loaded modal matrices at ``theta``, with (``derivatives``)
@@ -259,11 +277,12 @@ class BuffetingProblem:
         h = h.reshape(B, nk, p)
         A, fc, n = self.forcing(theta)
         x = (w.reshape(B, nk) / (2 * np.pi * fc)) ** 2
-        se = A * (1.0 + x) ** (-n)
+        se = A * (1.0 + x) ** (-n) * self.filter_power  # the DAQ's filter on every alias
         hh = np.einsum("bk,bkp,bkq->bkpq", se, h, h.conj())
         signal = hh.sum(axis=1)
         sig = self.noise(theta)
-        S = signal + np.eye(p)[None] * (self.spectra.dt * sig**2)[None, :, None]
+        floor = self.spectra.dt * self.noise_shape[:, None] * sig[None, :] ** 2  # (B, p)
+        S = signal + np.eye(p)[None] * floor[:, :, None]
         out = {"S": S, "s": st["s"], "structure": st}
         if derivatives:
             dh = dh.reshape(-1, B, nk, p)
@@ -274,7 +293,7 @@ class BuffetingProblem:
             dS[self.i_fc] = NUISANCE["log_fc"] * np.einsum("bk,bkpq->bpq", 2 * n * x / (1 + x), hh)
             dS[self.i_n] = -NUISANCE["order"] * n * np.einsum("bk,bkpq->bpq", np.log1p(x), hh)
             for i, j in enumerate(self.i_sig):
-                dS[j, :, i, i] = 2 * NUISANCE["log_sigma"] * self.spectra.dt * sig[i] ** 2
+                dS[j, :, i, i] = 2 * NUISANCE["log_sigma"] * floor[:, i]
             ds = np.zeros((p, self.dim))
             ds[:, : self.n_struct] = st["ds"]
             out.update(dS=dS, ds=ds)

@@ -116,8 +116,11 @@ def start(bp: BuffetingProblem, theta_static: np.ndarray) -> np.ndarray:
     h, _ = bp.transfer(st, 2 * np.pi * spec.freq[low], derivatives=False)
     _, fc, n = bp.forcing(th)
     shape = (1.0 + (spec.freq[low] / fc) ** 2) ** (-n)
-    auto = np.real(np.einsum("bii->bi", spec.periodogram[low])) - spec.dt * bp.noise(th) ** 2
-    ratio = np.maximum(auto, 0.0) / np.maximum(np.abs(h) ** 2 * shape[:, None], 1e-300)
+    auto = np.real(np.einsum("bii->bi", spec.periodogram[low])) - spec.dt * np.outer(
+        bp.noise_shape[low], bp.noise(th) ** 2
+    )
+    gain = bp.filter_power[low, bp.aliases]  # the DAQ's filter on the bins themselves (k = 0)
+    ratio = np.maximum(auto, 0.0) / np.maximum(np.abs(h) ** 2 * (shape * gain)[:, None], 1e-300)
     level = float(np.median(ratio))
     if not (np.isfinite(level) and level > 0):
         raise InputError("buffeting: the record has no fluctuation above its noise floor")

@@ -25,6 +25,7 @@ import time
 import numpy as np
 
 from wingopt.errors import InputError
+from wingopt.estimation import wiring
 from wingopt.estimation.noise import resolve_noise_std
 from wingopt.estimation.realistic.adequacy import assess
 from wingopt.estimation.realistic.frame_check import (
@@ -50,7 +51,6 @@ from wingopt.estimation.realistic.tension_profile import tension_profile
 from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements.series import Measurements
 from wingopt.membrane import MembraneModel
-from wingopt.membrane.modal import FvKModal
 
 __all__ = ["RealisticSettings", "realistic_identify", "LOAD_MODELS", "MEMBRANE_MODELS"]
 
@@ -67,9 +67,19 @@ def realistic_identify(
     cubic FvK model (``settings.membrane_model``)."""
     s = settings or RealisticSettings()
     meas = measurements
-    if s.record == "steady" or (s.record == "auto" and s.membrane_model == "fvk" and is_steady(meas.values)):
-        return steady_identify(model, meas, s, initial_load)
     t0 = time.perf_counter()
+    routed: list[str] = []
+    if s.record == "steady" or (s.record == "auto" and s.membrane_model == "fvk" and is_steady(meas.values)):
+        res = steady_identify(model, meas, s, initial_load)
+        if s.record == "steady" or not res.info["mean_moves"]["moved"]:
+            return res
+        # The steady route's own check: its mean load moves (a gust, a drift): the transient route
+        # models it. A routing error costs the steady fit's time, never the answer.
+        routed.append(
+            f"routed to the transient fit: the steady route found the load's mean moving (a window "
+            f"{res.info['mean_moves']['largest_window_move']:.0%} off the record's median)"
+        )
+        log.info(routed[-1])
     budget = Budget(s.max_total_iter, s.cpu_s)  # every fit of this record draws on it
     stops: dict[int, tuple[EarlyStop, Fit]] = {}  # id(fit) -> its monitor, when it stopped early (:mod:`.stopping`);
     # the fit itself is kept in the value, so that its id is not reused while the record is estimated
@@ -186,6 +196,8 @@ def realistic_identify(
             f"max_total_iter {s.max_total_iter}; {budget.spent:.1f} s CPU): a record this model explains poorly"
             + (f"; not fitted: {', '.join(skipped)}" if skipped else "")
         )
+    res.info["routing"] = routed[0] if routed else "transient"
+    wiring.attach(res.info, model, meas.t, meas.values, s, p0, steady=False)  # gains, offsets, swaps: warned
     res.wall_s = time.perf_counter() - t0
     return res
 
@@ -316,7 +328,7 @@ def _result(rp, fit: Fit, fits, chosen, ad, sigma, noise_source, wall, s, spread
     for name in PARAMETERS:
         est[name] = float(np.real(params[name][0]))
         std[name] = 0.0
-    fvk = isinstance(bm, FvKModal)
+    fvk = bm.physics == "fvk"
     for i, name in enumerate(rp.prior.free):
         j = rp.slices["par"].start + i
         sd = rp.prior.mean_std(name)[1] * np.sqrt(cov[j, j])

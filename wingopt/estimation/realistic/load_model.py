@@ -41,6 +41,47 @@ over a uniform span, and the flat plate's over a centred parabola: as many ampli
 sensors resolve."""
 
 
+def _canonical(mu: np.ndarray, vecs: np.ndarray) -> np.ndarray:
+    """Eigenvectors with each degenerate eigenspace's basis fixed by the space, not by LAPACK.
+
+    The free-edge space's shapes come in equal pairs (and four null shapes: constant, ``x``, ``y``,
+    ``xy``); ``eigh`` returns any orthonormal basis of such a space, and which one changed with the
+    BLAS thread count. The prior is the same on the whole space, so the posterior is not changed by
+    the choice, but a Levenberg–Marquardt step (its diagonal damping) and a fit stopped early are:
+    the gust record's frame-prior lift moved by 1e-3 relative and its band by 3 % between one and
+    two threads. Within a space the basis is the eigenvectors of a fixed generic diagonal
+    ``diag(1 + i / n)`` restricted to it (distinct eigenvalues, so unique up to sign)."""
+    n, k = vecs.shape
+    out = np.array(vecs, dtype=float)
+    scale = max(float(np.abs(mu).max(initial=0.0)), 1e-300)
+    start = 0
+    while start < k:
+        stop = start + 1
+        while stop < k and abs(mu[stop] - mu[start]) <= 1e-7 * max(abs(mu[start]), abs(mu[stop])) + 1e-10 * scale:
+            stop += 1
+        if stop - start > 1:
+            U = out[:, start:stop]
+            d = 1.0 + np.arange(n) / n
+            _, R = np.linalg.eigh(U.T @ (d[:, None] * U))
+            out[:, start:stop] = U @ R
+        start = stop
+    return out
+
+
+def _oriented(vecs: np.ndarray, integrals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvectors with a sign fixed by the shapes themselves, not by LAPACK, and their lifts: a
+    positive lift, or, for a shape without lift (antisymmetric: its lift is rounding, about 1e-17),
+    a positive first clearly non-zero entry (the sign of such a shape changed with the BLAS thread
+    count)."""
+    lift = vecs.T @ integrals
+    scale = np.abs(vecs).max(axis=0)
+    tiny = np.abs(lift) <= 1e-9 * max(float(np.abs(lift).max(initial=0.0)), 1e-300)
+    first = np.argmax(np.abs(vecs) > 1e-3 * scale[None, :], axis=0)
+    by_entry = np.sign(vecs[first, np.arange(vecs.shape[1])])
+    sign = np.where(tiny, np.where(by_entry < 0, -1.0, 1.0), np.where(lift < 0, -1.0, 1.0))
+    return vecs * sign, lift * sign
+
+
 @dataclass(frozen=True, eq=False)
 class LoadShapes:
     """The smoothest load shapes of a model's deflection basis and their prior.
@@ -90,10 +131,8 @@ class LoadShapes:
         mu, vecs = sla.eigh(model.regularizer.toarray(), model.gram.toarray(), subset_by_index=(0, count - 1))
         area = model.problem.width * model.problem.height
         std = kappa * abs(pressure) * np.sqrt(area) * (mu[0] / mu) ** power
-        lift = vecs.T @ model.basis_integrals
         # Orientation: a positive first coefficient means a positive mean pressure.
-        sign = np.where(lift < 0, -1.0, 1.0)
-        vecs, lift = vecs * sign, lift * sign
+        vecs, lift = _oriented(_canonical(mu, vecs), model.basis_integrals)
         forces = np.asarray(model.gram @ vecs)
         if not edge_shapes:
             return cls(vecs, mu, std, lift, forces)
@@ -102,9 +141,7 @@ class LoadShapes:
             raise InputError(f"edge shapes = {edge_shapes!r}: expected 0..{free.n}")
         muf, V = sla.eigh(free.regularizer.toarray(), free.gram.toarray(), subset_by_index=(0, edge_shapes - 1))
         muf = np.maximum(muf, 0.0)
-        liftf = V.T @ free.basis_integrals
-        signf = np.where(liftf < 0, -1.0, 1.0)
-        V, liftf = V * signf, liftf * signf
+        V, liftf = _oriented(_canonical(muf, V), free.basis_integrals)
         k4 = (np.pi / model.problem.width) ** 4 + (np.pi / model.problem.height) ** 4
         stdf = kappa * abs(pressure) * np.sqrt(area) * np.minimum(1.0, k4 / np.maximum(muf, 1e-300))
         return cls(

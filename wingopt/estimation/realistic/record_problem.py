@@ -23,8 +23,7 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation.realistic.load_model import GustAmplitude, LoadShapes
-from wingopt.membrane.modal import ModalMembrane
-from wingopt.membrane.modal.tangent import ForceTangent
+from wingopt.membrane.forward import ForceTangent, ModalMembrane
 
 __all__ = ["PARAMETERS", "ParameterPrior", "RecordProblem"]
 

@@ -61,7 +61,7 @@ class RealisticSettings:
     membrane_model : {"berger", "fvk"}
         The nonlinear model: ``berger`` (uniform tension following the mean stretch) or ``fvk``
         (Föppl–von Kármán's exact cubic stiffness on the ``cubic_modes`` lowest modes,
-        :class:`~wingopt.membrane.modal.fvk.FvKModal`, built on the estimator's mesh).
+        built on the estimator's mesh by :func:`~wingopt.membrane.forward.modal_model`).
     cubic_modes : int
         Modes with FvK's cubic stiffness (``membrane_model="fvk"``).
     spectrum_bin_hz : float

@@ -31,8 +31,9 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation.distributions import gamma_ppf
+from wingopt.measurements.acquisition import Acquisition
 
-__all__ = ["SpectralData", "spectral_data", "Screen", "screen", "MAX_DROPPED"]
+__all__ = ["SpectralData", "spectral_data", "with_acquisition", "Screen", "screen", "MAX_DROPPED"]
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +64,9 @@ class SpectralData:
         Fraction of frames present.
     mean, variance : ndarray ``(p,)``
         Mean and variance of the present frames.
+    acquisition : Acquisition
+        How the DAQ sampled the record (point sampling unless declared): the model spectrum's
+        ``|H(f)|^2`` (:mod:`wingopt.measurements.acquisition`); the bins stop at its fit band.
     """
 
     freq: np.ndarray
@@ -74,6 +78,7 @@ class SpectralData:
     present: float
     mean: np.ndarray
     variance: np.ndarray
+    acquisition: Acquisition = Acquisition()
 
     @property
     def bins(self) -> int:
@@ -106,7 +111,12 @@ def _sample_period(t: np.ndarray) -> float:
 
 
 def spectral_data(
-    t: np.ndarray, values: np.ndarray, bin_hz: float = 1.0, fmin: float = 1.0, fmax: float | None = None
+    t: np.ndarray,
+    values: np.ndarray,
+    bin_hz: float = 1.0,
+    fmin: float = 1.0,
+    fmax: float | None = None,
+    acquisition: Acquisition | None = None,
 ) -> SpectralData:
     """Binned cross-periodograms of the fluctuation of ``values`` ``(N, p)`` sampled at times ``t``.
 
@@ -119,7 +129,10 @@ def spectral_data(
     bin_hz : float
         Bin width (Hz), rounded to a whole number of Fourier frequencies (at least one).
     fmin, fmax : float
-        Band kept (Hz); ``fmax`` default: just below the Nyquist frequency (which is left out, as is 0).
+        Band kept (Hz); ``fmax`` default: just below the Nyquist frequency (which is left out, as is 0),
+        and never above the acquisition's fit band (:meth:`Acquisition.fit_band`).
+    acquisition : Acquisition, optional
+        How the DAQ sampled the record (default: point sampling).
 
     Returns
     -------
@@ -142,7 +155,9 @@ def spectral_data(
     x = np.where(ok[:, None], y - mean, 0.0)  # zero-filled fluctuation (dropped rows contribute nothing)
     X = np.fft.rfft(x, axis=0)
     f = np.fft.rfftfreq(N, dt)
+    acq = acquisition or Acquisition()
     top = 0.5 / dt if fmax is None else min(float(fmax), 0.5 / dt)
+    top = min(top, acq.fit_band(1.0 / dt) + 1e-9)  # above it the spectrum is the filter's, not the membrane's
     keep = (f > 0) & (f >= fmin) & (f < top) & (np.arange(f.size) < (N + 1) // 2)  # no DC, no Nyquist
     if keep.sum() < 1:
         raise InputError(f"spectral data: no Fourier frequency in [{fmin:g}, {top:g}) Hz for {N} frames")
@@ -160,7 +175,7 @@ def spectral_data(
     fb = (fsum[edges[1:]] - fsum[edges[:-1]]) / counts
     var = y[ok].var(axis=0)
     log.debug("spectral data: %d frames (%.1f %% present), %d bins of %d frequencies", N, 100 * q, nb, L)
-    return SpectralData(fb, Ib, counts, counts * q, dt, N, q, mean, var)
+    return SpectralData(fb, Ib, counts, counts * q, dt, N, q, mean, var, acq)
 
 
 @dataclass(frozen=True)
@@ -222,3 +237,15 @@ def screen(
     out = Screen(float(ratio[k]), float(fc[k]), tuple(map(float, band)), float(threshold), bool(ratio[k] >= threshold))
     log.debug("buffeting screen: ratio %.2f at %.1f Hz in [%.0f, %.0f] Hz", out.ratio, out.peak_hz, *band)
     return out
+
+
+def with_acquisition(data: SpectralData, acquisition: Acquisition) -> SpectralData:
+    """``data`` as sampled by ``acquisition``: its bins up to the acquisition's fit band (a refit's
+    spectra when the record turns out to be anti-aliased; the periodograms themselves are unchanged)."""
+    keep = data.freq <= acquisition.fit_band(1.0 / data.dt) + 1e-9
+    if keep.sum() < 2:
+        raise InputError(f"spectral data: no bin below the fit band of {acquisition.describe()}")
+    return SpectralData(
+        data.freq[keep], data.periodogram[keep], data.counts[keep], data.weights[keep], data.dt, data.frames,
+        data.present, data.mean, data.variance, acquisition,
+    )  # fmt: skip

@@ -3,16 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
-import functools
 import logging
 
 import numpy as np
 
-from wingopt.errors import InputError
 from wingopt.estimation.realistic.record_problem import RecordProblem
 from wingopt.estimation.realistic.solver import levenberg_marquardt
 from wingopt.membrane import bubble
-from wingopt.membrane.modal import BergerModal, FvKModal, ModalMembrane
+from wingopt.membrane.forward import ModalMembrane, modal_model
 
 __all__ = ["initial_state_prior", "modal_model", "scan", "short_start", "SCAN_S", "SHORT_START_ITER"]
 
@@ -76,47 +74,36 @@ def short_start(rp: RecordProblem, theta0: np.ndarray) -> np.ndarray:
     tension, the load and the initial state). Its iterations cost a fraction of the whole
     record's, and the whole fit then starts near its optimum (L1 on FvK truth, 1 s: 18 whole-record
     iterations from the scan). Records shorter than twice ``SCAN_S`` start from ``theta0``. Part of
-    the start-up, as the scan: not counted in ``max_total_iter``."""
+    the start-up, as the scan: not counted in ``max_total_iter``.
+
+    A problem with a gust amplitude has its knots over its own samples, so the short record has
+    fewer: ``theta0``'s amplitude is read at the short record's knots, and the fitted one is
+    written back on the whole record's knots inside the short window (``theta0``'s beyond it). The
+    frame prior's fit of a gust record came here with the whole record's knots (153 unknowns for
+    the short record's 83: "matmul ... size 153 is different from 83", L2 on FvK truth, no
+    initial shape declared).
+    """
     n = int(np.searchsorted(rp.t, rp.t[0] + SCAN_S, side="right"))
     if 2 * n > rp.t.size:
         return theta0
     short = dataclasses.replace(rp, t=rp.t[:n], y=rp.y[:n])
-    fit = levenberg_marquardt(short, theta0, SHORT_START_ITER)
+    fit = levenberg_marquardt(short, _moved(rp, theta0, short), SHORT_START_ITER)
     log.debug("short start: %d iterations on %d samples, cost %.4g", fit.iterations, n, fit.cost)
-    return fit.theta
+    return _moved(short, fit.theta, rp, theta0)
 
 
-class _Wing:
-    """A membrane model as a cache key: what its modal model depends on (geometry, mesh, material,
-    sensors), not the identification settings, so a re-read or recalibrated problem file hits."""
-
-    def __init__(self, model) -> None:
-        p = model.problem
-        self.model, self.key = model, (p.width, p.height, p.nodes, p.material, p.sensors)
-
-    def __hash__(self) -> int:
-        return hash(self.key)
-
-    def __eq__(self, other) -> bool:
-        return isinstance(other, _Wing) and self.key == other.key
-
-
-def modal_model(model, kind, modes, dt, substeps, stretch_gain, cubic_modes) -> ModalMembrane:
-    """The estimator's modal model, built once per wing and settings: a lab's records of one wing
-    share it (the FvK tensor of 30 cubic modes takes 1-1.5 s, more than a steady record's fit). The
-    sample period and sub-steps are not part of the build (the modes and the tensor do not depend on
-    them): records at 300 Hz and 1 kHz share one build, each with its own ``dt`` and ``substeps``."""
-    if not (isinstance(substeps, (int, np.integer)) and substeps >= 1):
-        raise InputError(f"substeps = {substeps!r}: expected an integer >= 1")
-    if not (np.isfinite(dt) and dt > 0):
-        raise InputError(f"dt = {dt!r}: expected a positive sample period (s)")
-    bm = _modal_model(_Wing(model), kind, modes, stretch_gain, cubic_modes)
-    return dataclasses.replace(bm, dt=float(dt), substeps=int(substeps))
-
-
-@functools.lru_cache(maxsize=4)
-def _modal_model(wing: _Wing, kind, modes, stretch_gain, cubic_modes) -> ModalMembrane:
-    model = wing.model
-    if kind == "fvk":
-        return FvKModal.build(model, modes, cubic_modes=cubic_modes)
-    return BergerModal.build(model, modes, stretch_gain=stretch_gain)
+def _moved(src: RecordProblem, theta: np.ndarray, dst: RecordProblem, base: np.ndarray | None = None) -> np.ndarray:
+    """``theta`` of ``src`` as unknowns of ``dst`` (the same record's problem on other samples): the
+    state, load and parameters as they are, the gust amplitude interpolated onto ``dst``'s knots
+    (piecewise linear, as it is); ``dst``'s knots beyond ``src``'s samples keep ``base``'s values."""
+    if src.gust is None:
+        return np.array(theta, dtype=float)
+    out = np.zeros(dst.dim) if base is None else np.array(base, dtype=float)
+    for name in ("x0", "c", "par"):
+        out[dst.slices[name]] = theta[src.slices[name]]
+    ks, kd = src.gust.knots(src.t), dst.gust.knots(dst.t)
+    inside = kd <= ks[-1] + 1e-9 * (ks[-1] - ks[0])
+    g = out[dst.slices["g"]]
+    g[inside] = np.interp(kd[inside], ks, theta[src.slices["g"]])
+    out[dst.slices["g"]] = g
+    return out

@@ -37,7 +37,7 @@ from wingopt.estimation.realistic.load_model import LoadShapes
 from wingopt.estimation.realistic.record_problem import ParameterPrior
 from wingopt.estimation.realistic.solver import Fit, levenberg_marquardt
 from wingopt.estimation.realistic.start import modal_model
-from wingopt.membrane.full import FvKMembrane
+from wingopt.membrane.forward import FullStructure, full_model
 from wingopt.membrane.model import MembraneModel
 from wingopt.membrane.parameters import MembraneParameters
 
@@ -103,8 +103,8 @@ class SteadyProblem:
         self.defect = np.zeros(self.data.mean.size)
 
     @cached_property
-    def fvk(self) -> FvKMembrane:
-        fvk = FvKMembrane.from_model(self.model)
+    def fvk(self) -> FullStructure:
+        fvk = full_model(self.model, "fvk")
         fvk._inplane  # noqa: B018 - factorised once: the copies with other prestrains share it
         return fvk
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wingopt.errors import InputError, SolverError
+from wingopt.estimation.realistic.anti_aliasing import refit_anti_aliased
 from wingopt.estimation.realistic.buffeting import BuffetingProblem
 from wingopt.estimation.realistic.buffeting_fit import (
     TOL,
@@ -40,6 +41,7 @@ __all__ = [
     "static_solutions",
     "resonance",
     "buffeted_all",
+    "spectral_refits",
     "corrected",
     "weights",
     "mixture",
@@ -236,4 +238,15 @@ def buffeted_all(
                 exc = err
         log.info("buffeting fit from the %s solution failed: %s", sol.label, exc)
         out[i] = (corrected(sol), f"the buffeting fit from the {sol.label} solution failed ({exc})")
+    return out
+
+
+def spectral_refits(
+    solutions: list[Solution], spectra: SpectralData, max_iter: int, notes: list[str]
+) -> list[tuple[Solution, str | None]]:
+    """:func:`buffeted_all`, then the test for an undeclared anti-aliasing filter on its best fit
+    (:mod:`.anti_aliasing`): on a collapse near Nyquist the solutions are refitted as if the filter
+    were declared, their bands take in both fits' lifts, and ``notes`` says so."""
+    refits = buffeted_all(solutions, spectra, max_iter)
+    out, _ = refit_anti_aliased(solutions, refits, spectra, lambda s, sp: buffeted_all(s, sp, max_iter), notes)
     return out

@@ -4,7 +4,7 @@
 :class:`~wingopt.estimation.streaming.StreamingEstimator` (``push(t, y) -> Estimate``) on the
 realistic estimator's model (:mod:`wingopt.estimation.realistic`): the modal Berger membrane or,
 with ``membrane_model="fvk"``, the cubic modal FvK membrane of the batch default
-(:class:`~wingopt.membrane.modal.fvk_step.FvKSample`); 48 modes of the 25x13 mesh, all
+(:class:`~wingopt.membrane.modal.sample.ModalSample`); 48 modes of the 25x13 mesh, all
 dynamic, predictor-corrector tension, sub-steps of at most 0.5 ms; the 15 smoothest load shapes
 with their prior, the prestrains and the damping factor (the problem file's
 ``free_parameters``) with their priors: the batch problem, one sample at a time.
@@ -15,7 +15,7 @@ states of the 12 lowest modes (the others start at the prior mean), the load, th
 With no process noise on the state the filter's covariance is exactly ``P = G Sigma G^T``,
 ``G = dx/dtheta`` (``2m x d``, ``d = 2*12 + 15 + 3 = 42``), so ``G`` and ``Sigma`` (``d x d``) are
 propagated instead of ``P`` (``114 x 114``). Per sample: the state and ``G`` go one sample on by
-the Berger map and its exact tangent (:class:`~wingopt.membrane.modal.berger_step.BergerSample`,
+the Berger map and its exact tangent (:class:`~wingopt.membrane.modal.sample.ModalSample`,
 ``d`` directions), a small random walk is added to the load block of ``Sigma`` (``load_walk``
 prior stds per sqrt(s): the estimate forgets slowly, a drifting load can be followed), and the
 measurement update linearises the quadratic sensors ``s_i = q^T C_i q`` at the prediction
@@ -45,7 +45,10 @@ data do not fit (as the batch). Adequacy: the normalised innovations ``nu^T S^-1
 per datum, between 1 and 1.15, as the linear streaming estimator); ``chi2_per_datum`` is their mean.
 Work per sample: one tangent step on ``(42, 48)`` arrays, ``O(d^2 p)`` algebra; memory: ``G``,
 ``Sigma``, a ring of ``window_s / dt`` numbers. A load changing faster than the walk (a gust) shows
-as a misfit; the batch's gust model is not streamed.
+as a misfit; the batch's gust model is not streamed. A numerical failure of the filter (a diverged
+state, an innovation covariance no repair makes positive definite) is recovered with a warning
+(:mod:`.recovery`: the prior held until the start-up, or a reset from the batch fit of the
+latest samples): the stream runs to the end of its input.
 """
 
 from __future__ import annotations
@@ -66,13 +69,11 @@ from wingopt.estimation.realistic.model_form import prestrain_std_with_model_for
 from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior
 from wingopt.estimation.result import Estimate
 from wingopt.estimation.streaming.nonlinear_start import TOLERANCE, batch_start
+from wingopt.estimation.streaming.recovery import Recovery, healthy
 from wingopt.estimation.streaming.running_noise import RunningNoise
 from wingopt.estimation.streaming.types import NonlinearStreamSettings, SampleClock
 from wingopt.membrane import MembraneModel, bubble
-from wingopt.membrane.modal.berger import BergerModal
-from wingopt.membrane.modal.berger_step import BergerSample
-from wingopt.membrane.modal.fvk import FvKModal
-from wingopt.membrane.modal.fvk_step import FvKSample
+from wingopt.membrane.forward import ModalSample, modal_model
 
 __all__ = ["NonlinearStreamSettings", "NonlinearStreamingEstimator"]
 
@@ -125,16 +126,13 @@ class NonlinearStreamingEstimator:
         self.last: Estimate | None = None
         self._isf: dict[int, float] = {}
         self.startup: dict = {}
+        self._recovery = Recovery(1)  # sized at the provisional filter's start (:mod:`.recovery`)
 
     # -- model and layout ----------------------------------------------------------------------
     def _build(self, dt: float) -> None:
         s, model = self.settings, self.model
         substeps = max(s.substeps, int(math.ceil(dt / s.substep_s - 1e-9)))
-        fvk = s.membrane_model == "fvk"
-        if fvk:
-            bm = FvKModal.build(model, min(s.modes, model.n), dt=dt, substeps=substeps, cubic_modes=s.cubic_modes)
-        else:
-            bm = BergerModal.build(model, min(s.modes, model.n), dt=dt, substeps=substeps)
+        bm = modal_model(model, s.membrane_model, min(s.modes, model.n), dt, substeps, cubic_modes=s.cubic_modes)
         m, ns, npar = bm.m, self.shapes.count, len(self.prior.free)
         ms = self.ms = min(s.state_modes, m)
         self.bm, self.m, self.n, self.d = bm, m, 2 * m + ns + npar, 2 * ms + ns + npar
@@ -142,13 +140,9 @@ class NonlinearStreamingEstimator:
         self.lc, self.pc = slice(2 * ms, 2 * ms + ns), slice(2 * ms + ns, self.d)  # in the unknowns theta
         self._forces = self.shapes.modal_forces(bm.shapes) * self.shapes.prior_std[:, None]  # per unknown
         ts = max(s.tracking_substeps, int(math.ceil(dt / (2.0 * s.substep_s) - 1e-9)))
-        if fvk:  # the batch's integrator (start-up) and the filter's (provisional, tracking)
-            self.fit_sampler = FvKSample(bm, self._forces, self.lc, self.pc)
-            self.sampler = FvKSample(bm, self._forces, self.lc, self.pc, substeps=ts)
-        else:
-            self.fit_sampler = BergerSample(bm, self._forces, self.lc, self.pc)
-            bt = bm if ts == substeps else BergerModal.build(model, bm.m, dt=dt, substeps=ts)
-            self.sampler = BergerSample(bt, self._forces, self.lc, self.pc)
+        # the batch's integrator (start-up) and the filter's (provisional, tracking)
+        self.fit_sampler = ModalSample(bm, self._forces, self.lc, self.pc)
+        self.sampler = ModalSample(bm, self._forces, self.lc, self.pc, substeps=ts)
         self._par_ms = np.array([self.prior.mean_std(name) for name in self.prior.free]).reshape(-1, 2)
         self._lift = self.shapes.lift_row * self.shapes.prior_std  # lift per scaled load unknown
 
@@ -200,6 +194,7 @@ class NonlinearStreamingEstimator:
     def push(self, t: float, y) -> Estimate:
         """Add one sample (time ``t`` in s, one value per sensor, NaN = missing); return the estimate."""
         t, y = self._clock.accept(t, y)
+        self._recovery.keep(y)
         k = self.count
         self.count += 1
         phase = self.phase
@@ -218,8 +213,7 @@ class NonlinearStreamingEstimator:
             if self._running is not None:  # the noise level refined by every sample
                 self._running.push(y)
                 self.sigma = self._running.sigma
-            self._predict()
-            self._update(y)
+            self._recovery.step(self, y)  # predict and update, a numerical failure recovered
         return self._estimate(k, t, phase)
 
     def parameters(self) -> dict:
@@ -231,19 +225,27 @@ class NonlinearStreamingEstimator:
             j = self.pc.start + i
             sd = self._par_ms[i, 1] * math.sqrt(max(self.Sigma[j, j], 0.0))
             std[name] = sd * d if name == "damping" else sd
-            if isinstance(self.bm, FvKModal):
+            if self.bm.physics == "fvk":
                 std[name] = prestrain_std_with_model_form(name, out[name], std[name])
         return {"parameters": out, "parameters_std": std}
 
     @property
     def _model_name(self) -> str:
-        if isinstance(self.bm, FvKModal):
+        if self.bm.physics == "fvk":
             return f"nonlinear (FvK cubic, {self.bm.cubic_modes} modes), EKF"
         return "nonlinear (Berger), EKF"
 
     def info(self) -> dict:
         out = {"phase": self.phase, "samples": self.count, "dt_s": self.dt, "model": self._model_name}
         out.update(modes=self.m, load_shapes=self.shapes.count, substeps=self.bm.substeps, **self.startup)
+        out.update(self._recovery.info())
+        chi = self.startup.get("startup_chi2_per_datum")
+        if chi is not None and chi > 1.0 + TOLERANCE:  # the filter went on from a start that misfits
+            out.setdefault("warnings", []).append(
+                f"the start-up's batch fit does not fit the first {self.startup['startup_sample'] + 1} samples "
+                f"(chi-square {chi:.1f} per datum): the filter went on from a poor start, and its answer may be far "
+                "off with a narrow band; run the batch identify on the stored record"
+            )
         if self.phase not in ("waiting",):
             out.update(self.parameters(), noise_std=self.sigma.tolist(), noise_source=self.noise_source)
         return out
@@ -269,12 +271,15 @@ class NonlinearStreamingEstimator:
         self._walk = (s.load_walk**2) * dt
         W = max(int(round(s.window_s / dt)), 1)
         self._nis, self._nd, self._ring = np.zeros(W), np.zeros(W, dtype=np.int64), 0
-        self._update(Y[0])
-        for k in range(1, Y.shape[0]):
-            self._predict()
-            self._update(Y[k])
-        self.phase = "provisional"
         self._startup_at = max(int(round(s.startup_s / dt)), s.min_samples + 1)
+        events, self._recovery = self._recovery.events, Recovery(self._startup_at, self.p)
+        self._recovery.events = events
+        for y in Y:
+            self._recovery.keep(y)
+        self._recovery.step(self, Y[0], predict=False)
+        for k in range(1, Y.shape[0]):
+            self._recovery.step(self, Y[k])
+        self.phase = "provisional"
 
     def _startup(self) -> None:
         """Noise level from the buffer (unless given), the batch fit of the buffer, then tracking."""
@@ -286,6 +291,7 @@ class NonlinearStreamingEstimator:
             tail = Y[int(Y.shape[0] * (1 - MHE_NOISE.tail)) :]
             self._running = RunningNoise(self.sigma, np.isfinite(np.diff(tail, 2, axis=0)).sum(axis=0), Y[-2:])
         out = batch_start(self, Y, self.sigma)
+        self._recovery.released()
         # the misfit level the model reaches (as the linear stream), at most the batch's tolerance:
         # a start-up fit that does not fit the data must not raise the bar of the flag
         self._level = min(max(1.0, out["startup_chi2_per_datum"]), 1.0 + TOLERANCE)
@@ -297,6 +303,8 @@ class NonlinearStreamingEstimator:
             "startup_wall_s": time.perf_counter() - w0,
             **out,
         }
+        if not healthy(self):  # the start-up's fit itself: reset from the latest samples, or held
+            self._recovery.fail(self, "the start-up's batch fit left a state that is not finite")
 
     # -- the filter ---------------------------------------------------------------------------------
     def _predict(self) -> None:
@@ -367,7 +375,9 @@ class NonlinearStreamingEstimator:
         ls = self.ls
         n = int(self._nd.sum())
         chi = float(self._nis.sum())
-        adequate = bool(n == 0 or chi <= self._level * self._threshold(n))
+        adequate = bool(n == 0 or chi <= self._level * self._threshold(n)) and not (
+            self._recovery.hold and phase == "tracking"
+        )
         per = chi / max(n, 1)
         lift = float(self._lift @ self.x[ls])
         lc = self.lc

@@ -11,7 +11,9 @@ whole-record estimator, whose steady lift the rows then carry (phase ``steady``)
 refits the whole record once more, so the stream's final answer is the batch estimate of the same
 samples. A record found not steady at a look (a release rings at its start) is a transient record
 for good: the filter answers and the record is not looked at again (an hour-long protocol stream
-whose ringing has left the kept record must not start refitting it).
+whose ringing has left the kept record must not start refitting it); that first look fits the
+record once by the batch route, whose frame check's lift spread then joins the filter's band
+and whose lift checks the filter's (:mod:`.batch_check`).
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import numpy as np
 
 from wingopt.estimation.realistic.steady_estimator import is_steady
 from wingopt.estimation.result import Estimate, IdentificationResult
+from wingopt.estimation.streaming.batch_check import MAX_CHECK_SAMPLES, BatchCheck
 from wingopt.measurements import Measurements
 
 __all__ = ["SteadyRefit"]
@@ -72,6 +75,8 @@ class SteadyRefit:
         self.refits: list[dict] = []
         self.final = False
         self.transient = False  # a look found a transient: the filter's record for good
+        self.check: BatchCheck | None = None  # the transient record's batch check (:mod:`.batch_check`)
+        self._last: Estimate | None = None
 
     # the live filter's protocol, passed through
     @property
@@ -84,16 +89,20 @@ class SteadyRefit:
 
     @property
     def last(self) -> Estimate | None:
-        return self.inner.last
+        return self._last if self._last is not None else self.inner.last
 
     def info(self) -> dict:
-        return self.inner.info()
+        out = self.inner.info()
+        if self.check is not None:
+            out = {**out, "batch_check": self.check.as_dict()}
+            out["warnings"] = list(out.get("warnings", [])) + self.check.warnings()
+        return out
 
     def push(self, t: float, y) -> Estimate:
         """Add one sample; the filter's estimate, or the last refit's steady lift once the record is steady."""
         e = self.inner.push(t, y)
         if self.transient:  # the filter's record: nothing kept
-            return e
+            return self._checked(e)
         if len(self._t) == self._t.maxlen:  # the oldest sample leaves the kept record
             self._looked_at = max(self._looked_at - 1, 0)
         self._t.append(float(e.t))
@@ -101,7 +110,7 @@ class SteadyRefit:
         if self._due():
             self._look()
         if self.result is None:
-            return e
+            return self._checked(e)
         lift, std = self.result.reported_lift
         chi2 = self.result.info.get("adequacy", {}).get("chi2_per_datum", math.nan)
         adequate = bool(self.result.info.get("model_adequate", True))
@@ -118,6 +127,26 @@ class SteadyRefit:
         else:
             self._look(final=True)
         return self.result
+
+    def _checked(self, e: Estimate) -> Estimate:
+        """The filter's estimate with the batch check's spread in its band (after a transient look)."""
+        if self.check is not None:
+            e = self.check.widened(e)
+            self._last = e
+        return e
+
+    def _batch_check(self) -> None:
+        """The whole-record batch fit of the first transient look's record, once (:mod:`.batch_check`)."""
+        last, n = self.inner.last, len(self._t)
+        c0 = time.thread_time()
+        try:
+            self.check = BatchCheck.of(self._refit(self._record()), last, n)
+        except Exception as exc:  # noqa: BLE001 - a check that fails must not stop the stream
+            self.check = BatchCheck.failed(last, n, exc)
+        self._last = self.check.widened(last)
+        for w in self.check.warnings():
+            log.warning("[ekf stream] %s", w)
+        log.info("transient stream: batch check on %d samples (%.2f s CPU)", n, time.thread_time() - c0)
 
     # -- the looks ---------------------------------------------------------------------------------
     def _due(self) -> bool:
@@ -140,6 +169,8 @@ class SteadyRefit:
         if not is_steady(values):
             if self.result is not None:
                 log.warning("the stream is no longer steady at t = %.6g s: back to the live filter", self._t[-1])
+            elif self.check is None and len(self._t) <= MAX_CHECK_SAMPLES and self.inner.last is not None:
+                self._batch_check()
             self.result, self.transient = None, True
             self._t.clear()
             self._y.clear()

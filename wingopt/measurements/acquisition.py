@@ -1,0 +1,220 @@
+"""How a DAQ samples a record: :class:`Acquisition`, its anti-aliasing filter and transfer function.
+
+A record is not the membrane's outputs at the sample times unless the DAQ point-samples them. Most
+strain-bridge modules are delta-sigma converters: they sample fast and hand over a decimated,
+linear-phase FIR-filtered record, flat to ~0.45 fs and empty above ~0.55 fs, so the aliases a point
+sampler folds back are gone and the spectrum near the Nyquist frequency is the filter's. Others put
+an analog low-pass (Butterworth, Bessel) before a point sampler: the aliases are attenuated, not
+removed, and the spectrum bends well below Nyquist. A spectral fit that assumes point sampling then
+reads a bent spectrum as a different membrane (measured: a tunnel record through a delta-sigma
+filter read -21 % at 2.6 bands, "converged").
+
+:class:`Acquisition` declares the sampling (``[measurements] acquisition``, :mod:`wingopt.problem.
+measurements`; or ``dataclasses.replace(problem, acquisition=Acquisition(...))``):
+
+=============== =====================================================================================
+kind            response ``H(f)`` (``fs`` the output rate)
+=============== =====================================================================================
+``point``       1 at every frequency (aliases folded back unattenuated)
+``fir``         a linear-phase digital decimation filter: 1 to ``passband fs``, 0 from ``stopband fs``
+                (cosine transition), or, with ``taps``, a Kaiser-window design of that many taps at
+                :data:`OVERSAMPLE` ``fs`` (cut-off midway)
+``delta-sigma`` ``fir`` with the usual converter's edges: ``passband`` 0.45, ``stopband`` 0.55
+``butterworth`` analog, ``order`` (default 4), -3 dB at ``cutoff_hz``
+``bessel``      analog, ``order`` (default 4), -3 dB at ``cutoff_hz``
+=============== =====================================================================================
+
+What the estimators do with it: the spectral (buffeting) fit multiplies each alias of the model
+spectrum and the noise floor (the sensors' noise comes before the filter) by ``|H(f + k fs)|^2`` and
+keeps only the bins in :meth:`Acquisition.fit_band` (a digital filter's passband; where an analog
+filter passes at least a tenth of the power). The transient (time-domain) fits do not model the
+filter: a digital filter's group delay (``taps / 2`` high-rate samples, usually compensated by the
+converter) and an analog filter's phase lag shift the release by a few samples; declare the
+acquisition so that a run records it, and keep ``cutoff_hz`` well above the membrane's modes for a
+transient record.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.signal as sig
+
+from wingopt.errors import InputError
+
+__all__ = ["Acquisition", "KINDS", "OVERSAMPLE", "POWER_FLOOR"]
+
+KINDS = ("point", "fir", "delta-sigma", "butterworth", "bessel")
+"""The sampling kinds :class:`Acquisition` knows."""
+
+OVERSAMPLE = 8
+"""Rate (in output samples) at which a ``fir`` declared by its ``taps`` is designed."""
+
+POWER_FLOOR = 0.1
+"""An analog filter's bins are fitted where it passes at least this fraction of the power (-10 dB):
+beyond, the record's spectrum is the filter's skirt and the noise, and a small error in the declared
+response would be read as the membrane."""
+
+_DIGITAL = ("fir", "delta-sigma")
+_ANALOG = ("butterworth", "bessel")
+
+
+def _number(name: str, value, lo: float, hi: float, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise InputError(f"acquisition {name} = {value!r}: expected {what}")
+    v = float(value)
+    if not (math.isfinite(v) and lo < v < hi):
+        raise InputError(f"acquisition {name} = {value!r}: expected {what}")
+    return v
+
+
+@dataclass(frozen=True)
+class Acquisition:
+    """How the DAQ sampled the record (module docstring).
+
+    Parameters
+    ----------
+    kind : {"point", "fir", "delta-sigma", "butterworth", "bessel"}
+    passband, stopband : float, optional
+        A digital filter's edges, fractions of the output sample rate (``fir`` default 0.45 and
+        ``1 - passband``; ``delta-sigma``: 0.45 and 0.55).
+    taps : int, optional
+        A ``fir``'s length at :data:`OVERSAMPLE` times the output rate (a Kaiser-window design);
+        without it the response is ideal in the passband and the stopband.
+    order : int, optional
+        An analog filter's order (default 4).
+    cutoff_hz : float, optional
+        An analog filter's -3 dB frequency (Hz); required for ``butterworth`` and ``bessel``.
+    """
+
+    kind: str = "point"
+    passband: float | None = None
+    stopband: float | None = None
+    taps: int | None = None
+    order: int | None = None
+    cutoff_hz: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise InputError(f"acquisition kind = {self.kind!r}: expected one of {', '.join(KINDS)}")
+        digital = self.kind in _DIGITAL
+        analog = self.kind in _ANALOG
+        for name, ok in (("passband", digital), ("stopband", digital), ("taps", self.kind == "fir"),
+                         ("order", analog), ("cutoff_hz", analog)):  # fmt: skip
+            if getattr(self, name) is not None and not ok:
+                raise InputError(f"acquisition {name} = {getattr(self, name)!r}: not a setting of kind {self.kind!r}")
+        if digital:
+            default = 0.45
+            pb = (
+                default
+                if self.passband is None
+                else _number("passband", self.passband, 0, 0.5, "a fraction of fs in (0, 0.5)")
+            )
+            sb = (
+                1.0 - pb
+                if self.stopband is None
+                else _number("stopband", self.stopband, pb, 1.0, f"a fraction of fs in ({pb:g}, 1)")
+            )
+            object.__setattr__(self, "passband", pb)
+            object.__setattr__(self, "stopband", sb)
+            if self.taps is not None:
+                if (
+                    isinstance(self.taps, bool)
+                    or not isinstance(self.taps, (int, np.integer))
+                    or not 3 <= self.taps <= 100_000
+                ):
+                    raise InputError(f"acquisition taps = {self.taps!r}: expected a whole number of taps, 3 to 100000")
+                object.__setattr__(self, "taps", int(self.taps))
+        if analog:
+            order = 4 if self.order is None else self.order
+            if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 1 <= order <= 12:
+                raise InputError(f"acquisition order = {self.order!r}: expected a filter order, 1 to 12")
+            object.__setattr__(self, "order", int(order))
+            if self.cutoff_hz is None:
+                raise InputError(f"acquisition kind = {self.kind!r}: give its cutoff_hz (the -3 dB frequency, Hz)")
+            object.__setattr__(
+                self, "cutoff_hz", _number("cutoff_hz", self.cutoff_hz, 0, math.inf, "a positive frequency (Hz)")
+            )
+
+    @property
+    def point(self) -> bool:
+        """Point sampling: no filter, every alias folded back."""
+        return self.kind == "point"
+
+    @property
+    def digital(self) -> bool:
+        return self.kind in _DIGITAL
+
+    def response(self, f: np.ndarray, fs: float) -> np.ndarray:
+        """The complex response ``H(f)`` at frequencies ``f`` (Hz, any sign) for output rate ``fs`` (Hz)."""
+        f = np.asarray(f, dtype=float)
+        if self.point:
+            return np.ones(f.shape, dtype=complex)
+        if self.digital:
+            if self.taps is not None:
+                rate = OVERSAMPLE * fs
+                h = sig.firwin(self.taps, 0.5 * (self.passband + self.stopband) * fs, fs=rate)
+                _, H = sig.freqz(h, worN=np.abs(f).ravel(), fs=rate)
+                H = H * np.exp(2j * np.pi * np.abs(f).ravel() * (self.taps - 1) / (2 * rate))  # delay compensated
+                return np.where(f.ravel() < 0, np.conj(H), H).reshape(f.shape)
+            a = np.abs(f) / fs
+            x = np.clip((a - self.passband) / (self.stopband - self.passband), 0.0, 1.0)
+            return (0.5 * (1.0 + np.cos(np.pi * x))).astype(complex)
+        wc = 2 * np.pi * self.cutoff_hz
+        if self.kind == "butterworth":
+            b, a = sig.butter(self.order, wc, analog=True)
+        else:
+            b, a = sig.bessel(self.order, wc, analog=True, norm="mag")
+        _, H = sig.freqs(b, a, worN=2 * np.pi * np.abs(f).ravel())
+        return np.where(f.ravel() < 0, np.conj(H), H).reshape(f.shape)
+
+    def power(self, f: np.ndarray, fs: float) -> np.ndarray:
+        """``|H(f)|^2`` (what a spectrum sees: every channel is filtered alike, the phase cancels)."""
+        return np.abs(self.response(f, fs)) ** 2
+
+    def fit_band(self, fs: float) -> float:
+        """Top of the band a spectral fit keeps (Hz): Nyquist for point sampling, a digital filter's
+        passband edge, an analog filter's :data:`POWER_FLOOR` frequency (at most Nyquist)."""
+        if self.point:
+            return 0.5 * fs
+        if self.digital:
+            return self.passband * fs
+        f = np.linspace(0.0, 0.5 * fs, 2001)
+        below = np.flatnonzero(self.power(f, fs) < POWER_FLOOR)
+        return float(f[below[0]]) if below.size else 0.5 * fs
+
+    def describe(self) -> str:
+        """One line: what the DAQ did."""
+        if self.point:
+            return "point sampling"
+        if self.digital:
+            taps = f", {self.taps} taps" if self.taps is not None else ""
+            name = "delta-sigma FIR" if self.kind == "delta-sigma" else "digital FIR"
+            return f"{name} (passband {self.passband:.3g} fs, stopband {self.stopband:.3g} fs{taps})"
+        return f"analog {self.kind} filter, order {self.order}, -3 dB at {self.cutoff_hz:.4g} Hz"
+
+    def as_dict(self) -> dict:
+        """What a run records."""
+        keys = ("passband", "stopband", "taps") if self.digital else ("order", "cutoff_hz") if not self.point else ()
+        return {"kind": self.kind, **{k: getattr(self, k) for k in keys if getattr(self, k) is not None}}
+
+    @classmethod
+    def from_value(cls, value, where: str = "acquisition") -> Acquisition:
+        """From a problem file's value: a kind (``"delta-sigma"``) or a table ``{kind = ..., ...}``."""
+        if isinstance(value, Acquisition):
+            return value
+        if isinstance(value, str):
+            return cls(value)
+        if isinstance(value, dict):
+            unknown = sorted(set(value) - {"kind", "passband", "stopband", "taps", "order", "cutoff_hz"})
+            if unknown:
+                raise InputError(
+                    f"{where}.{unknown[0]}: not an acquisition setting (expected kind, passband, stopband, taps, "
+                    "order, cutoff_hz)"
+                )
+            if "kind" not in value:
+                raise InputError(f"{where}: give its kind ({', '.join(KINDS)})")
+            return cls(**value)
+        raise InputError(f"{where} = {value!r}: expected a kind ({', '.join(KINDS)}) or a table {{kind = ..., ...}}")
