@@ -10,7 +10,10 @@
    inertia shape its response (:mod:`.tension`): their lift combination is fitted when the record
    fluctuates enough and no calibration is given (``prestrain="auto"``, time-resolved mode);
 4. time-resolved (``mode="frames"``, the default with several frames): every frame's own load
-   with the inertia and damping forces in the balance (:mod:`.frames`).
+   with the inertia and damping forces in the balance (:mod:`.frames`);
+5. a mean field that misfits the load space systematically (chi-square per datum above
+   :data:`ADEQUATE_CHI2`: a load outside the priors' families): the lifts of richer spaces, the
+   other priors and held-out fits are added to the band, the lift unmoved (:mod:`.model_form`).
 
 The result is the package's one :class:`~wingopt.estimation.result.IdentificationResult`; ``info``
 says where the tension came from, what the field itself says about it, how well the model fits
@@ -26,6 +29,7 @@ import numpy as np
 
 from wingopt.estimation.fullfield.data import field_data, inplane_check
 from wingopt.estimation.fullfield.frames import frame_loads
+from wingopt.estimation.fullfield.model_form import model_form
 from wingopt.estimation.fullfield.modes import ModalCheck, modal_check
 from wingopt.estimation.fullfield.settings import FullFieldSettings
 from wingopt.estimation.fullfield.steady import PrestrainPrior, SteadyFit, fit_prior
@@ -35,7 +39,7 @@ from wingopt.estimation.realistic.load_model import LoadShapes
 from wingopt.estimation.realistic.record_problem import ParameterPrior
 from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements.dic import DICFrames
-from wingopt.membrane.full import FvKMembrane
+from wingopt.membrane.forward import full_model
 from wingopt.membrane.model import MembraneModel
 from wingopt.membrane.parameters import MembraneParameters
 
@@ -93,7 +97,7 @@ def fullfield_identify(
     prior = ParameterPrior.from_problem(problem)
     pp = PrestrainPrior.of(prior, problem.identification.prestrain_std is not None)
     damping = prior.damping
-    fvk = FvKMembrane.from_model(model, MembraneParameters(*pp.mean, damping, damping))
+    fvk = full_model(model, "fvk", MembraneParameters(*pp.mean, damping, damping))
     B = data.basis
     y0 = data.mean_w - B @ data.mean_z
     weight = np.full(y0.size, 1.0 / data.tau**2)
@@ -116,6 +120,12 @@ def fullfield_identify(
     mean = float(w @ lifts)
     std = float(np.sqrt(max(w @ (stds**2 + lifts**2) - mean**2, 0.0)))
     best = fits[int(np.argmax(w))]
+    form = None
+    if best.post.chi2_per_datum > ADEQUATE_CHI2:
+        # a systematic misfit: the band takes in the lifts of the spaces the evidence does not exclude
+        # (:mod:`.model_form`); the lift does not move
+        form = model_form(model, s, p0, fvk, data, y0, weight, best, mean)
+        std_before, std = std, float(np.hypot(std, form.spread))
     idx = np.flatnonzero(data.used)
     if mode == "frames":
         fl = frame_loads(data, best, s.inertia)
@@ -132,6 +142,9 @@ def fullfield_identify(
     if mode == "frames" and s.modes and fluctuation(data) >= MIN_FLUCTUATION:
         modal = modal_check(data, best.system, best.prestrain)
     info = _info(s, mode, data, fits, w, best, mean, std, pp, fvk, dyn, modal)
+    info["model_form"] = None if form is None else form.as_dict(mean, std_before)
+    if form is not None:
+        info["warnings"].append(form.warning(mean, std_before))
     if mode == "frames":
         info["frames_chi2_per_datum_median"] = float(np.median(fl.chi2_per_datum))
     return IdentificationResult(

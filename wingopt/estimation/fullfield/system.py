@@ -25,7 +25,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
-from wingopt.membrane.full import FvKMembrane
+from wingopt.membrane.forward import FullStructure
 from wingopt.membrane.parameters import MembraneParameters, prestress_tensions
 
 __all__ = ["PressureFromShape", "Posterior", "posterior"]
@@ -84,7 +84,7 @@ class PressureFromShape:
 
     Parameters
     ----------
-    fvk : FvKMembrane
+    fvk : FullStructure
         On the estimator's mesh (its parameters' damping is used for ``r``).
     z_hat : ndarray (n,)
         The fitted deflection about which the balance is linearised.
@@ -94,7 +94,7 @@ class PressureFromShape:
         The load shapes' force vectors ``G``.
     """
 
-    def __init__(self, fvk: FvKMembrane, z_hat: np.ndarray, basis: np.ndarray, forces: np.ndarray) -> None:
+    def __init__(self, fvk: FullStructure, z_hat: np.ndarray, basis: np.ndarray, forces: np.ndarray) -> None:
         self.fvk, self.z, self.basis, self.forces = fvk, np.asarray(z_hat, float), basis, forces
         self._cache: dict = {}
         # The in-plane block and the coupling do not depend on the prestrain (a uniform prestrain's
