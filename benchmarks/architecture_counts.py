@@ -230,7 +230,8 @@ def main(argv: list[str] | None = None) -> None:
         print(json.dumps(c, indent=1))
         return
     print(
-        f"route chosen by string: {c['route_choices']['comparisons']} comparisons in {c['route_choices']['files']} files"
+        f"route chosen by string: {c['route_choices']['comparisons']} comparisons"
+        f" in {c['route_choices']['files']} files"
     )
     print(f"problem.identification reads in engines: {c['identification_reads_in_engines']['count']}")
     print(f"estimation files importing membrane internals: {len(c['estimation_files_importing_membrane_internals'])}")

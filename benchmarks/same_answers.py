@@ -88,8 +88,8 @@ def runs(quick: bool) -> dict:
     loads = ("L1",) if quick else ("L1", "L2", "L3")
     for load in loads:
         for method in ("mhe", "jekf-tuned"):
-            timed(f"{load}/{method}", lambda: _record(wo.identify(membrane, load=load, method=method)))
-        timed(f"{load}/fvk-transient", lambda: _record(wo.identify(membrane, load=load, truth="fvk")))
+            timed(f"{load}/{method}", lambda lo=load, me=method: _record(wo.identify(membrane, load=lo, method=me)))
+        timed(f"{load}/fvk-transient", lambda lo=load: _record(wo.identify(membrane, load=lo, truth="fvk")))
     return out
 
 

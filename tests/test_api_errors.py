@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 import wingopt as wo
-from wingopt.workflows.sources import SIMULATION_ONLY
 from wingopt.errors import WingoptError
+from wingopt.workflows.sources import SIMULATION_ONLY
 
 ROOT = Path(__file__).resolve().parents[1]
 REC = ROOT / "examples" / "data" / "tunnel_calibration_300Hz.csv"  # any shipped record: every call is refused
@@ -141,6 +141,8 @@ CASES = [
     ("load_problem(/dev/zero)", lambda t: wo.load_problem("/dev/zero"), ["/dev/zero"]),
     ("load_problem(dir)", lambda t: wo.load_problem(t), ["directory"]),
     ("parse_mesh(None)", lambda t: wo.parse_mesh(None), ["mesh"]),
+    ("plot_lift(None)", lambda t: wo.plot_lift(None), ["run", "IdentifyRun"]),
+    ("plot_field(None)", lambda t: wo.plot_field(None), ["run", "IdentifyRun"]),
     ("parse_mesh(137)", lambda t: wo.parse_mesh(137), ["mesh"]),
     ("build_model(None)", lambda t: wo.build_model(None), ["problem"]),
     ("build_model(mesh '13x7')", lambda t: wo.build_model(_p13(), "13x7"), ["nodes"]),

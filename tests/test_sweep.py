@@ -243,7 +243,7 @@ def test_a_torn_last_line_is_ignored_with_a_warning_and_cut_before_appending(tmp
 @pytest.mark.parametrize(
     "extra, match",
     [
-        ('method = "kalman"', "method = 'kalman': expected one of mhe"),
+        ('method = "kalman"', "method = 'kalman': expected one of auto, mhe"),
         ('"material.prestrain" = -0.01', "prestrain = -0.01: expected a number in \\[1e-09, 0.5\\]"),
         ('"estimator.windw" = 100', "estimator.windw = 100: expected an MHESettings field"),
         ("noise = 250", "noise = 250: expected a noise level in percent"),

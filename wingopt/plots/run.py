@@ -27,6 +27,11 @@ def _title(run) -> str:
     return f"{str(src).rsplit('/', 1)[-1]} · {run.method}"
 
 
+def _check_run(run) -> None:
+    if not all(hasattr(run, a) for a in ("result", "problem", "mean_field", "case")):
+        raise InputError(f"run = {type(run).__name__}: expected the IdentifyRun that wingopt.identify returned")
+
+
 def plot_lift(run, ax=None):
     """The lift history of ``run`` with its band and the reported lift ± its band (1 sd).
 
@@ -42,6 +47,7 @@ def plot_lift(run, ax=None):
     matplotlib.figure.Figure
         The figure drawn into (``ax.figure`` when ``ax`` is given).
     """
+    _check_run(run)
     r = run.result
     truth = None if run.case is None else run.case.true_lift
     return _plot_lift(None, r.t, r.lift, r.lift_std, truth, _title(run), ax=ax, reported=r.reported_lift)
@@ -64,6 +70,7 @@ def plot_field(run, which: str | float = "mean", ax=None):
     matplotlib.figure.Figure
         The figure drawn into (``ax.figure`` when ``ax`` is given).
     """
+    _check_run(run)
     X, Y = np.meshgrid(np.linspace(0, run.problem.width, GRID[0]), np.linspace(0, run.problem.height, GRID[1]))
     mf = run.mean_field()
     if isinstance(which, str) and which in ("mean", "std"):

@@ -1,4 +1,4 @@
-"""Moving-horizon Tikhonov estimation of the membrane load (spec §4).
+"""The moving-horizon estimator (MHE) package: its modules and what it exports (spec §4).
 
 Modules: :mod:`~.settings` (configuration), :mod:`~.model` (reduced modal model, window
 responses), :mod:`~.window` (one window's least-squares problem), :mod:`~.solvers` (Gauss–Newton

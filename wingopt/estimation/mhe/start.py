@@ -1,4 +1,4 @@
-"""Start-up of the moving-horizon estimator: amplitude scan, coarse-to-fine solve, sign choice.
+"""Where the first window starts from: amplitude scan, coarse-to-fine solve, sign choice.
 
 Facts this module is built on (spec §4, "What is known about this inverse problem"):
 
