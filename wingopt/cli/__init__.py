@@ -38,26 +38,19 @@ __all__ = [
     "OUT_HELP",
     "add_force_option",
     "SOLVER_FLAGS",
+    "warnings_printed",
 ]
 
 EXIT_OK, EXIT_INPUT, EXIT_SOLVER, EXIT_INTERNAL = 0, 2, 3, 70
 
-OUT_HELP = (
-    "output directory, replaced atomically: new, empty, or an earlier run's holding only the files wingopt wrote "
-    "there, unchanged (a file of yours there, or an input of the run, is refused and never deleted)"
-)
+OUT_HELP = "output directory (replaced atomically; docs/cli.md)"
 """The ``--out`` help of every command that writes a result directory (wingopt.results.ownership)."""
 
 
 def add_force_option(parser, option: str, name: str = "FILE") -> None:
     """``--force``: let ``option`` (a single output file) replace an existing file, kept as a backup
     (the rule of :mod:`wingopt.results.ownership`, the same for every such option)."""
-    parser.add_argument(
-        "--force",
-        action="store_true",
-        help=f"let {option} replace an existing file (the earlier one is kept as {name}.bak, or {name}.bak.1, ...); "
-        "without it an existing file, the input problem file included, is refused",
-    )
+    parser.add_argument("--force", action="store_true", help=f"let {option} replace a file (kept as {name}.bak)")
 
 
 SOLVER_FLAGS = {("morph", "qp"): ("--solver", "qp"), ("identify", "mhe"): ("--solver", "window")}
@@ -76,9 +69,8 @@ class _Parser(argparse.ArgumentParser):
 
 def _common_options() -> argparse.ArgumentParser:
     common = argparse.ArgumentParser(add_help=False)
-    g = common.add_argument_group("output verbosity")
-    g.add_argument("-q", "--quiet", action="store_true", help="only errors (logging level ERROR)")
-    g.add_argument("-v", "--verbose", action="count", default=0, help="more detail (-v INFO, -vv DEBUG)")
+    common.add_argument("-q", "--quiet", action="store_true", help="only errors (no stage lines)")
+    common.add_argument("-v", "--verbose", action="count", default=0, help="more detail (-v INFO, -vv DEBUG)")
     return common
 
 
@@ -140,6 +132,27 @@ class _Lines(logging.Formatter):
         return f"wingopt {self.command}: {record.name.removeprefix('wingopt.')}: {one_line(record.getMessage())}"
 
 
+class _WarningCount(logging.Filter):
+    """Counts the warning lines the command's handler prints (the count its summary line gives)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.count = 0
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record.levelno == logging.WARNING:
+            self.count += 1
+        return True
+
+
+_WARNINGS = _WarningCount()
+
+
+def warnings_printed() -> int:
+    """How many ``warning:`` lines this command has printed on stderr so far."""
+    return _WARNINGS.count
+
+
 def solver_flag_hint(command: str, exc: SolverError) -> str:
     """`` (--flag name|name|...)``: how to pick another solver after ``exc`` in ``command`` (or "")."""
     flag = SOLVER_FLAGS.get((command, exc.context))
@@ -158,6 +171,8 @@ def _configure_logging(args) -> None:
         level = logging.INFO
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(_Lines(getattr(args, "command", "") or ""))
+    _WARNINGS.count = 0
+    handler.addFilter(_WARNINGS)
     root = logging.getLogger()
     for h in list(root.handlers):
         root.removeHandler(h)

@@ -8,12 +8,12 @@ frequencies; the fit gives the prestrains and the damping with their posterior, 
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 
 from wingopt.cli import OUT_HELP, add_force_option
 from wingopt.cli import options as opt
+from wingopt.cli.helptext import Formatter
 from wingopt.problem import load_problem, parse_mesh
 from wingopt.resources import parse_size
 from wingopt.results import check_new_file, check_writable, to_jsonable
@@ -37,7 +37,7 @@ def register(sub, common) -> None:
         "tap): the prestrains and the damping factor with their posterior; with --write-problem, a problem file "
         "that carries them as the prior of later identifications.",
         epilog=EXAMPLE,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=Formatter,
     )
     p.add_argument("problem", help="problem file (.toml) or built-in name (membrane)")
     p.add_argument(
@@ -50,7 +50,7 @@ def register(sub, common) -> None:
         help="the record starts at rest in the protocol's bubble shape with this peak (m); default: the initial "
         "shape is unknown (a pluck or a tap) and identified",
     )
-    p.add_argument("--out", required=True, help="summary.json; " + OUT_HELP)
+    p.add_argument("--out", required=True, metavar="DIR", help="summary.json; " + OUT_HELP)
     p.add_argument(
         "--write-problem",
         metavar="NEW.toml",
@@ -58,8 +58,8 @@ def register(sub, common) -> None:
         "problem file included, is refused unless --force)",
     )
     add_force_option(p, "--write-problem", "NEW.toml")
-    p.add_argument("--mesh", help="estimator mesh NXxNY (default: the problem's)")
-    p.add_argument("--noise-std", type=float, help="sensor noise std (default: estimated from the data)")
+    opt.add(p, "--mesh", help="estimator mesh (default: the problem's)")
+    opt.add(p, "--noise-std")
     p.add_argument("--max-memory", metavar="SIZE", help="refuse runs estimated to need more (e.g. 4G)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     opt.add_channel_options(p)

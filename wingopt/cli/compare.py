@@ -15,11 +15,11 @@ time); the tasks run cheapest first, a stage line on stderr as each finishes, an
 
 from __future__ import annotations
 
-import argparse
 import json
 
-from wingopt.cli import add_force_option
+from wingopt.cli import OUT_HELP, add_force_option
 from wingopt.cli import options as opt
+from wingopt.cli.helptext import Formatter, add_help_all, advanced
 from wingopt.cli.identify import parse_noise
 from wingopt.cli.sweep import add_engine_options, announce, engine_settings
 from wingopt.errors import InputError
@@ -29,12 +29,9 @@ from wingopt.workflows.comparison import JEKF_MODES, ComparisonPreset, run_compa
 
 ORDER = 40
 
-EXAMPLE = """examples:
-  wingopt compare membrane --out runs/compare --doc docs/estimation_comparison.md --workers 2
-  wingopt compare membrane --methods mhe --n-seeds 5 --out runs/compare --resume
-  wingopt compare membrane --table no --n-sign-seeds 20 --consistency --out runs/extra
-  wingopt compare membrane --loads L1 --noise 1 --n-seeds 1 --jekf-order full --out runs/exact
-  (--noise is in PERCENT, as for identify: --noise 1,5)"""
+EXAMPLE = """examples (more in docs/cli.md):
+  wingopt compare membrane --out runs/compare --workers 2
+  wingopt compare membrane --methods mhe --n-seeds 5 --out runs/cmp --resume"""
 
 
 def register(sub, common) -> None:
@@ -42,23 +39,28 @@ def register(sub, common) -> None:
         "compare",
         parents=[common],
         help="compare the MHE with the seed's and a tuned JEKF on the simulated protocol",
-        description="Estimator comparison on L1–L3 x noise x seeds (MHE, seed-faithful JEKF, tuned JEKF), "
-        "the MHE's sign and lift-band checks over many seeds, and the sensor-count consistency study.",
+        usage="%(prog)s PROBLEM --out DIR [options]",
+        description="Estimators on L1-L3 x noise x seeds (MHE, seed JEKF, tuned JEKF), the MHE's\n"
+        "sign and lift-band checks over many seeds, and the sensor-count consistency study.",
         epilog=EXAMPLE,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=Formatter,
     )
+    add_help_all(p)
     p.add_argument("problem", help="membrane problem file or built-in name")
-    p.add_argument("--loads", default="L1,L2,L3", help="comma-separated load cases (default L1,L2,L3)")
-    p.add_argument("--noise", default="1,5", help="noise levels in percent (default 1,5)")
+    p.add_argument("--loads", default="L1,L2,L3", metavar="LIST", help="load cases (default L1,L2,L3)")
+    p.add_argument("--noise", default="1,5", metavar="PERCENT", help="noise levels, %% of each peak (1,5)")
     opt.add(p, "--n-seeds", dest="seeds", default=5, help="noise seeds 0..N-1 (default 5)", aliases=("--seeds",))
-    p.add_argument(
-        "--first-seed",
-        type=int,
-        default=0,
-        help="table seeds FIRST..FIRST+N-1 instead (e.g. 200: out-of-sample check of the lambda rule)",
+    advanced(
+        p.add_argument(
+            "--first-seed",
+            type=int,
+            default=0,
+            metavar="N",
+            help="table seeds FIRST..FIRST+N-1 instead (e.g. 200: out-of-sample check of the lambda rule)",
+        )
     )
-    p.add_argument("--methods", default="mhe,jekf-seed,jekf-tuned", help="methods (default all three)")
-    p.add_argument("--table", choices=("yes", "no"), default="yes", help="run the comparison table (default yes)")
+    p.add_argument("--methods", default="mhe,jekf-seed,jekf-tuned", metavar="LIST", help="methods (all three)")
+    p.add_argument("--table", choices=("yes", "no"), default="yes", metavar="yes|no", help="the table (yes)")
     p.add_argument("--no-oracle", action="store_true", help="skip the MHE's oracle-lambda runs")
     opt.add(
         p,
@@ -71,36 +73,30 @@ def register(sub, common) -> None:
         aliases=("--sign-seeds",),
     )
     p.add_argument("--consistency", action="store_true", help="run the sensor-count consistency study")
-    p.add_argument("--load-space", choices=("fixed", "free"), default="fixed", help="MHE load space")
-    p.add_argument("--state-prior", default="1", help="MHE initial-state prior: a number (default 1) or 'evidence'")
-    p.add_argument("--truth-mesh", default="49x25", help="mesh of the simulated truth (default 49x25)")
+    advanced(p.add_argument("--load-space", choices=("fixed", "free"), default="fixed", help="MHE load space"))
+    advanced(
+        p.add_argument(
+            "--state-prior", default="1", metavar="S|evidence", help="MHE initial-state prior (default 1) or 'evidence'"
+        )
+    )
+    opt.add(p, "--truth-mesh")
     p.add_argument(
         "--jekf-order",
         default=str(JEKF_MODES),
         metavar="N|full",
-        help=f"the JEKFs keep their lowest N modes (default {JEKF_MODES}, as the demo: ~10x faster, final errors "
-        "within a few per cent of the exact filter's, docs/estimation_comparison.md) or every mode: 'full' (exact)",
+        help=f"JEKF modes kept (default {JEKF_MODES}) or 'full' (exact)",
     )
     opt.add(
         p,
         "--workers",
         dest="jobs",
         default=1,
-        help="worker processes of a local dask cluster (default 1: in this process)",
+        help="local dask workers (default 1: in this process)",
         aliases=("--jobs",),
     )
     p.add_argument("--resume", action="store_true", help="keep the records already in DIR/records.jsonl")
-    p.add_argument(
-        "--out",
-        required=True,
-        help="directory for records.jsonl, summary.json, comparison.md: new, empty or an earlier compare's (it may "
-        "hold only the files wingopt wrote there, unchanged: a file of yours there is refused, never overwritten)",
-    )
-    p.add_argument(
-        "--doc",
-        help="also write the markdown report to this file (e.g. docs/estimation_comparison.md); an existing file is "
-        "refused unless --force",
-    )
+    p.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
+    p.add_argument("--doc", metavar="FILE", help="also write the markdown report to FILE")
     add_force_option(p, "--doc", "FILE")
     p.add_argument("--json", action="store_true", help="print the summary as JSON instead of the table")
     add_engine_options(p, workers_flag=None)

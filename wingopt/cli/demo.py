@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 
 from wingopt.cli import OUT_HELP
 from wingopt.cli import options as opt
+from wingopt.cli.helptext import Formatter
 from wingopt.results import to_jsonable
 
 ORDER = 1
@@ -26,9 +26,9 @@ def register(sub, common) -> None:
         "with the QP controller and the seed's LQR, and load identification L1-L3 with the MHE and the JEKF. "
         "Writes per-run outputs, summary.json and a self-contained report.html.",
         epilog=EXAMPLE,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=Formatter,
     )
-    p.add_argument("--out", default="wingopt-demo", help="default ./wingopt-demo; " + OUT_HELP)
+    p.add_argument("--out", default="wingopt-demo", metavar="DIR", help="default ./wingopt-demo; " + OUT_HELP)
     p.add_argument("--quick", action="store_true", help="coarse meshes and short runs (a smoke test, not the results)")
     opt.add(p, "--force")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")

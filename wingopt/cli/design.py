@@ -9,26 +9,22 @@ as ``NEW.toml.bak``). It parses and calls :func:`wingopt.workflows.design.run_de
 
 from __future__ import annotations
 
-import argparse
 import json
 
 from wingopt.cli import OUT_HELP, add_force_option
 from wingopt.cli import options as opt
+from wingopt.cli.helptext import Formatter, add_help_all, advanced
 from wingopt.errors import InputError
 
 ORDER = 35
 
-EXAMPLE = """examples:
-  wingopt design-sensors membrane --count 4 --out runs/design4
-  wingopt design-sensors membrane --count 6 --criterion a --prior gp --out runs/design6a
-  wingopt design-sensors membrane --count 4 --candidates "sizes=0.035x0.012,0.012x0.035;step=2" --out runs/d4
-  wingopt design-sensors membrane --count 4 --candidates "keepout=0.06:0.08:0:0.07" \\
-      --write-problem membrane_designed.toml --out runs/d4k
+EXAMPLE = """criteria: risk (the estimator's expected error), a (A-optimal), lift, d (D-opt.).
+--candidates SPEC: ';'-separated sizes=WxH[,WxH], step=N, keepout=x0:x1:y0:y1,
+rect=x0:x1:y0:y1, only-rects (metres); docs/cli.md and docs/sensor_design.md.
 
-criteria: risk (default; the estimator's expected error: Tikhonov bias + noise, its own lambda rule),
-a (A-optimal: expected L2 load error under the prior), lift (lift variance), d (D-optimal).
---candidates SPEC: ';'-separated sizes=WxH[,WxH], step=N (lattice cells), keepout=x0:x1:y0:y1,
-rect=x0:x1:y0:y1, only-rects (metres). Default: the problem's sensor sizes on the half-element lattice."""
+examples:
+  wingopt design-sensors membrane --count 4 --out runs/design4
+  wingopt design-sensors membrane --count 4 --candidates "step=2" --out runs/d4"""
 
 
 def register(sub, common) -> None:
@@ -36,49 +32,39 @@ def register(sub, common) -> None:
         "design-sensors",
         parents=[common],
         help="optimal stretch-sensor layout for membrane load identification",
-        description="Choose K sensor rectangles that minimise the predicted identification error: "
-        "candidates x linearised information x a Bayesian criterion, convex relaxation (bound), rounding, swaps.",
+        usage="%(prog)s PROBLEM --count N --out DIR [options]",
+        description="Choose N sensor rectangles that minimise the predicted identification error\n"
+        "(candidates, linearised information, convex relaxation with a bound, swaps).",
         epilog=EXAMPLE,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=Formatter,
     )
-    p.add_argument("problem", help="membrane problem file (.toml) or built-in name (membrane)")
-    p.add_argument("--count", type=int, required=True, help="number of sensors K")
-    p.add_argument("--candidates", metavar="SPEC", help="candidate set (see below)")
-    p.add_argument("--criterion", choices=("risk", "a", "lift", "d"), default="risk", help="design criterion")
-    p.add_argument("--prior", choices=("gp", "tikhonov"), default="gp", help="load prior of a/lift/d (default gp)")
-    p.add_argument("--length-scale", type=float, help="GP length scale, m (default 0.3 of the chord)")
+    add_help_all(p)
+    p.add_argument("problem", help="membrane problem file (.toml) or built-in name")
+    p.add_argument("--count", type=int, required=True, metavar="N", help="number of sensors")
+    p.add_argument("--candidates", metavar="SPEC", help="candidate set (below; default: the problem's sizes)")
     p.add_argument(
-        "--nominal", type=int, help="nominal loads the design is robust over (default 12 for risk, 4 for a/lift/d)"
+        "--criterion", choices=("risk", "a", "lift", "d"), default="risk", metavar="NAME", help="risk, a, lift, d"
     )
-    p.add_argument("--aggregate", choices=("mean", "max"), default="mean", help="over the nominal loads")
     p.add_argument(
-        "--noise",
-        "--noise-percent",
-        dest="noise",
-        type=opt.percent,
-        default=1.0,
-        help="noise in PERCENT of each sensor's peak (default 1; Python: noise_fraction = this / 100)",
+        "--prior", choices=("gp", "tikhonov"), default="gp", metavar="NAME", help="a/lift/d load prior: gp, tikhonov"
     )
-    p.add_argument("--t-end", type=float, default=1.0, help="record length, s (default 1)")
+    p.add_argument("--length-scale", type=float, metavar="M", help="GP length scale, m (default 0.2 of the chord)")
+    p.add_argument("--nominal", type=int, metavar="N", help="nominal loads (default 12 risk, 4 a/lift/d)")
     p.add_argument(
-        "--montecarlo",
-        type=int,
-        default=0,
-        metavar="N",
-        help="re-rank the design's N best layouts by the estimator's mean error on the nominal loads (risk only; "
-        "about 8 N identifications)",
+        "--aggregate", choices=("mean", "max"), default="mean", metavar="HOW", help="over the loads: mean, max"
+    )
+    p.add_argument("--noise", type=opt.percent, default=1.0, metavar="PERCENT", help="noise, %% of each peak (1)")
+    advanced(p.add_argument("--noise-percent", dest="noise", type=opt.percent, metavar="PERCENT", help="as --noise"))
+    opt.add(p, "--t-end", default=1.0, help="record length, s (default 1)")
+    p.add_argument(
+        "--montecarlo", type=int, default=0, metavar="N", help="re-rank the N best layouts by the estimator (risk)"
     )
     p.add_argument("--allow-overlap", action="store_true", help="let chosen rectangles overlap")
-    p.add_argument("--out", required=True, help=OUT_HELP)
-    p.add_argument(
-        "--write-problem",
-        metavar="NEW.toml",
-        help="also write the problem file with the designed sensors (atomically; an existing file, the input "
-        "problem file included, is refused unless --force)",
-    )
+    p.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
+    p.add_argument("--write-problem", metavar="NEW.toml", help="also write the problem file with the design")
     add_force_option(p, "--write-problem", "NEW.toml")
     p.add_argument("--no-plots", action="store_true", help="skip the figure")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    opt.add(p, "--json")
     p.set_defaults(func=run)
 
 

@@ -11,10 +11,10 @@ frame has too few valid points), ``initial_shape.csv`` (the first frame's deflec
 
 from __future__ import annotations
 
-import argparse
 import json
 
 from wingopt.cli import options as opt
+from wingopt.cli.helptext import Formatter
 from wingopt.membrane.virtual_sensors import KINDS, METHODS
 from wingopt.results import check_writable, to_jsonable
 from wingopt.workflows.dic import dic_sensors, write_dic_sensors_outputs
@@ -37,7 +37,7 @@ def register(sub, common) -> None:
         description="Virtual stretch sensors from DIC frames: the problem's sensor rectangles integrated over every "
         "frame, written as a sensor record (t + one column per sensor) that wingopt identify --data reads.",
         epilog=EXAMPLE,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=Formatter,
     )
     p.add_argument("problem", help="problem file (.toml; its [dic] table maps the frames) or built-in name (membrane)")
     src = p.add_mutually_exclusive_group(required=True)  # --frames: the old spelling
@@ -49,8 +49,8 @@ def register(sub, common) -> None:
         help="slope (default): the sensor's definition on a fit of W; strain: the seed's strain-trace mean "
         "(includes the in-plane stretch); strain_minus_inplane: that less the fitted in-plane part",
     )
-    p.add_argument("--method", choices=METHODS, default="fit", help="fit (default) or points (strain kinds only)")
-    p.add_argument("--out", required=True, help="output directory (replaced atomically)")
+    opt.add(p, "--method", choices=METHODS, default="fit", help="fit (default) or points (strain kinds only)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory (replaced atomically)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     p.set_defaults(func=run)
 

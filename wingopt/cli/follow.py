@@ -25,6 +25,7 @@ import os
 import signal
 import sys
 
+from wingopt.cli.helptext import advanced
 from wingopt.errors import InputError
 
 __all__ = ["add_options", "wants_stream", "run_stream"]
@@ -34,24 +35,21 @@ log = logging.getLogger(__name__)
 
 def add_options(parser) -> None:
     """The streaming options of ``wingopt identify`` (``--follow`` itself is in the source group)."""
-    g = parser.add_argument_group(
-        "streaming (--follow FILE.csv or --data -)",
-        "one estimate per sample: CSV on stdout (t,lift_N,lift_std_N,chi2_per_datum,adequate,phase), appended "
-        "and flushed to lift.csv in the hidden working directory .OUT.tmp-*, moved to --out with summary.json at "
-        "the end; stops at a line '# end', at the end of stdin, after --idle-timeout, on SIGTERM/SIGINT/SIGHUP or "
-        "when stdout closes, keeping every estimate (an error ends the stream after the record so far is "
-        "written); a followed file that is truncated or rotated is read again from its start (as tail -F); the "
-        "summary line (or --json) goes to stderr; --model auto or fvk streams the FvK membrane (an extended Kalman "
-        "filter, prestrains and damping identified), nonlinear the Berger membrane, linear the linear MHE",
-    )
-    g.add_argument("--print-every", type=int, default=1, metavar="K", help="print every K-th estimate (default 1)")
+    # What a stream prints, keeps and when it stops: docs/cli.md (identify, streams). ``parser``: the
+    # parser or the argument group (measured data) the options go in.
+    g = parser
+    g.add_argument("--print-every", type=int, default=1, metavar="K", help="stream: print every K-th estimate")
     g.add_argument(
         "--idle-timeout",
         type=float,
         metavar="S",
-        help="stop after S seconds without a new line (default: wait until '# end', end of input or SIGTERM)",
+        help="stream: stop after S s without a new line",
     )
-    g.add_argument("--poll", type=float, default=0.05, metavar="S", help="sleep at the end of the file (default 0.05)")
+    advanced(
+        g.add_argument(
+            "--poll", type=float, default=0.05, metavar="S", help="sleep at the end of the file (default 0.05)"
+        )
+    )
 
 
 def wants_stream(args) -> bool:

@@ -6,10 +6,10 @@ eq. 5.29, Figs. 5.12–5.17: NK-ADI gains mapped back to fields).
 
 from __future__ import annotations
 
-import argparse
 import json
 
 from wingopt.cli import OUT_HELP
+from wingopt.cli.helptext import Formatter
 from wingopt.problem import parse_mesh
 from wingopt.results import to_jsonable
 from wingopt.workflows.gains import gains_to_directory
@@ -33,14 +33,14 @@ def register(sub, common) -> None:
         description="Compute the continuous full-order LQR gain of the plate on each mesh (Newton-Kleinman with "
         "low-rank ADI) and plot the functional gains of eq. 5.29 for PZ1, PZ4 and PZ7 along x = W/2.",
         epilog=EXAMPLE,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=Formatter,
     )
     p.add_argument("problem", help="problem file (.toml) or built-in name (plate)")
     p.add_argument("--meshes", default="7x31,13x61,25x121", help="comma-separated meshes (default the seed's three)")
     p.add_argument("--r", type=float, help="input weight R = r I, V^-2 (default 1e-10)")
     p.add_argument("--weight-modes", type=int, help="modes in the state weight (default 20)")
     p.add_argument("--cache", help="directory to keep/reuse gains_<mesh>.npz")
-    p.add_argument("--out", required=True, help=OUT_HELP)
+    p.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     p.set_defaults(func=run)
 

@@ -8,11 +8,12 @@ mesh, default 49x25, noise in percent of each sensor's peak output) or measured 
 
 from __future__ import annotations
 
-import argparse
 import json
+import os
 
-from wingopt.cli import OUT_HELP, follow
+from wingopt.cli import OUT_HELP, follow, warnings_printed
 from wingopt.cli import options as opt
+from wingopt.cli.helptext import Formatter, add_help_all, advanced
 from wingopt.cli.options import parse_noise
 from wingopt.errors import InputError
 from wingopt.estimation.registry import METHOD_ALIASES, METHODS, MODEL_ALIASES, MODELS
@@ -22,154 +23,131 @@ from wingopt.workflows.protocols import TRUTHS
 
 ORDER = 30
 
-EXAMPLE = """noise convention: --noise is in PERCENT of each sensor's peak output (spec §2):
-  --noise 1 is 1 %, --noise 5 is 5 %. Values between 0 and 0.1 look like fractions and are
-  refused as ambiguous; write them with a percent sign to mean it (--noise 0.05%%).
+USAGE = """%(prog)s PROBLEM --out DIR [options]
+       (--load CASE | --data FILE.csv | --follow FILE.csv | --dic DIR|FILE.npz)"""
 
-examples:
-  wingopt identify membrane --load L1 --noise 1 --seed 0 --method mhe --out runs/L1
-  wingopt identify membrane --load L3 --noise 5 --seed 2 --load-space free --out runs/L3free
-  wingopt identify membrane --load L2 --noise 1 --seed 0 --method jekf-seed --out runs/L2jekf
-  wingopt identify membrane --data wind_tunnel.csv --out runs/tunnel --json   # FvK membrane, tension identified
-  wingopt identify cal.toml --data examples/data/tunnel_300Hz.csv --out runs/tunnel   # after wingopt calibrate
-  wingopt identify membrane --data wind_tunnel.csv --model linear --out runs/lin   # the seed's linear MHE
-  wingopt identify membrane --follow daq.csv --print-every 100 --idle-timeout 5 --out runs/live
-  daq_reader | wingopt identify membrane --data - --out runs/live
-  wingopt identify membrane --load LE --truth fvk --truth-prestrain 0.06 0.04 --truth-damping 2 --out runs/fvk
-  wingopt identify membrane --load LE --truth berger --truth-prestrain 0.06 0.04 --out runs/real
-  wingopt identify membrane --load L1 --truth berger --gust --out runs/gust
-  wingopt identify membrane --data gusty.csv --load-model random_walk --load-timescale 0.5 --out runs/gust
-  wingopt identify membrane --data daq.csv --time-column time_s --columns S1=ch1,S2=ch2,S3=ch3,S4=ch4 \\
-      --gain 1e-5 --offset 250 --out runs/daq   # stretch = gain * (raw - offset)
-  (a record that starts loaded, without a release transient, takes the steady route: the sensors' mean and the
-  flow's buffeting; [identification] pressure_prior and leading_edge declare the flow, docs/tunnel.md)
-  (CSV: header 't,S1,S2,S3,S4', time in s, dimensionless stretch; empty cells = missing samples; a DAQ's own
-  columns and units: --columns, --gain, --offset (stretch = gain * (raw - offset)) or the problem's [measurements])"""
+EXAMPLE = """examples (more, and every option explained, in docs/cli.md):
+  wingopt identify membrane --load L1 --noise 1 --seed 0 --out runs/L1
+  wingopt identify cal.toml --data examples/data/tunnel_300Hz.csv --out runs/t"""
+
+METHOD_HELP = (
+    "auto (default), batch (whole-record fit; steady on a loaded record; alias realistic), mhe (moving "
+    "horizon), jekf-seed (alias jekf), jekf-tuned, ekf (stream), fullfield (DIC full field)"
+)
 
 
 def register(sub, common) -> None:
     p = sub.add_parser(
         "identify",
         parents=[common],
-        help="identify the membrane load from stretch sensors (MHE or JEKF)",
-        description="Estimate the pressure field and its lift on the membrane wing from stretch-sensor "
-        "time series: the simulated protocol (--load) or measured data (--data FILE.csv).",
+        help="identify the membrane load and its lift (every estimator: batch, mhe, jekf, ekf, fullfield)",
+        usage=USAGE,
+        description="Estimate the membrane wing's pressure field and its lift, with a band (1 sd).",
         epilog=EXAMPLE,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=Formatter,
     )
+    add_help_all(p)
     p.add_argument("problem", help="problem file (.toml) or built-in name (membrane)")
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument(
-        "--load", choices=("L1", "L2", "L3", "consistency", "LE"), help="simulate this load case (LE: leading edge)"
+        "--load",
+        choices=("L1", "L2", "L3", "consistency", "LE"),
+        metavar="CASE",
+        help="simulated case: L1, L2, L3, LE, consistency",
     )
-    src.add_argument(
-        "--data", metavar="FILE.csv", help="measured series: t column + one column per sensor ('-': stream from stdin)"
-    )
-    src.add_argument(
-        "--follow", metavar="FILE.csv", help="stream a CSV that grows: one estimate per sample as rows arrive"
-    )
-    src.add_argument(
-        "--dic", metavar="DIR|FILE.npz", help="DIC frames: the full-field estimator (another --method: virtual sensors)"
-    )
-    p.add_argument(
-        "--noise",
-        "--noise-percent",
-        dest="noise",
-        default="1",
-        help="simulated noise in PERCENT of each sensor's peak (default 1; Python: noise_percent)",
-    )
-    opt.add(p, "--seed")
-    opt.add(p, "--truth-mesh")
-    p.add_argument("--same-mesh", action="store_true", help="seed protocol: simulate the truth on the estimator's mesh")
-    opt.add(p, "--t-end", default=1.0, help="simulated duration, s (default 1)")
-    opt.add(p, "--mesh", help="estimator mesh NXxNY (default: the problem's)")
-    p.add_argument(
-        "--method",
-        choices=METHODS + tuple(METHOD_ALIASES),
-        default="auto",
-        help="estimator: auto (default: batch on --data and on nonlinear truth, mhe on the seed's linear "
-        "protocol, ekf on streams); mhe = the seed protocol's moving-horizon estimator (linear membrane); "
-        "batch = whole-record fit with prestrains and damping identified (berger or fvk membrane); "
-        "jekf-seed (alias jekf) = the seed's filter; jekf-tuned = zero initial load, lambda from the data; "
-        "ekf = the streaming filter of the batch model",
-    )
+    src.add_argument("--data", metavar="FILE.csv", help="sensor record: t, S1, S2, ... ('-': standard input)")
+    src.add_argument("--follow", metavar="FILE.csv", help="stream a CSV that grows: one estimate per row")
+    src.add_argument("--dic", metavar="DIR|FILE.npz", help="DIC frames (DICe, CSV or NPZ; docs/dic.md)")
+    p.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
+    opt.add(p, "--mesh", help="estimator mesh (default: the problem's)")
+    opt.add(p, "--method", choices=METHODS + tuple(METHOD_ALIASES), default="auto", help=METHOD_HELP)
     p.add_argument(
         "--model",
         choices=MODELS + tuple(MODEL_ALIASES),
         default="auto",
-        help="membrane the estimator assumes: fvk (Foppl-von Karman), berger (uniform tension; alias "
-        "nonlinear), linear (the seed's); auto (default) follows --method and the data "
-        "(docs/estimation_realistic.md). Options the chosen pair does not use are refused.",
+        metavar="NAME",
+        help="membrane: auto, fvk, berger (nonlinear), linear",
     )
-    p.add_argument(
-        "--no-model-form",
-        dest="model_form",
-        action="store_const",
-        const=False,
-        help="mhe: do not cross-check a flagged result with the FvK estimator (faster; the band then covers "
-        "only the misfit, not the model's bias)",
+    advanced(
+        p.add_argument(
+            "--no-model-form",
+            dest="model_form",
+            action="store_const",
+            const=False,
+            help="mhe: do not cross-check a flagged result with the FvK estimator (faster; the band then covers "
+            "only the misfit, not the model's bias)",
+        )
     )
-    t = p.add_argument_group("simulated truth (--load)")
-    t.add_argument(
-        "--truth",
-        choices=TRUTHS,
-        default="linear",
-        help="truth membrane: linear (default, the seed's protocol), berger, fvk (Foppl-von Karman, high fidelity)",
+    # Simulation-only options: unset is None, so that one given with measured data is refused by name.
+    t = p.add_argument_group("simulated case (--load only; refused with --data, --dic, --follow)")
+    t.add_argument("--noise", dest="noise", metavar="PERCENT", help="noise, %% of each peak (default 1)")
+    advanced(t.add_argument("--noise-percent", dest="noise", metavar="PERCENT", help="the same as --noise"))
+    opt.add(t, "--seed", default=None)
+    opt.add(t, "--truth-mesh", default=None)
+    same = "seed protocol: simulate the truth on the estimator's mesh"
+    advanced(t.add_argument("--same-mesh", action="store_true", default=None, help=same))
+    opt.add(t, "--t-end", help="simulated duration, s (default 1)")
+    t.add_argument("--truth", choices=TRUTHS, metavar="NAME", help="truth membrane: linear (default), berger, fvk")
+    advanced(
+        t.add_argument("--truth-prestrain", nargs=2, type=float, metavar=("EX", "EY"), help="truth prestrain (file's)")
     )
-    t.add_argument("--truth-prestrain", nargs=2, type=float, metavar=("EX", "EY"), help="truth prestrain (file's)")
-    t.add_argument("--truth-damping", type=float, default=1.0, help="truth damping factor (default 1)")
-    t.add_argument("--gust", action="store_true", help="1-cos gust on the load: +60 %% over 0.2 s from t = 0.4 s")
-    g = p.add_argument_group("estimator options (each refused by an estimator that does not use it)")
+    advanced(t.add_argument("--truth-damping", type=float, metavar="X", help="truth damping factor (default 1)"))
+    t.add_argument("--gust", action="store_true", default=None, help="1-cos gust: +60 %% over 0.2 s from 0.4 s")
+    g = p.add_argument_group("estimator options (refused by an estimator that does not use them)")
     opt.add(g, "--solver", choices=solver_names("window"), help="mhe window solver (numpy)", aliases=("--backend",))
-    g.add_argument("--qp-solver", choices=solver_names("least-distance"), help="QP solver of --solver cvxpy (clarabel)")
-    g.add_argument("--load-space", choices=("fixed", "free"), help="mhe load basis (default fixed)")
-    g.add_argument(
-        "--state-prior",
-        help="mhe: prior std of the initial modal state relative to the data's amplitude (default 1: weak), or "
-        "'evidence': chosen among 1, 0.1, 0.01, 0.001 by the first window's evidence (helps --load-space free)",
+    advanced(
+        g.add_argument(
+            "--qp-solver", choices=solver_names("least-distance"), help="QP solver of --solver cvxpy (clarabel)"
+        )
     )
-    g.add_argument(
-        "--window",
-        help="mhe window length: seconds with a unit (0.2s, 200ms) or a whole number of samples (200); "
-        "default 0.2s (200 samples at 1 kHz, 60 at 300 Hz)",
+    advanced(g.add_argument("--load-space", choices=("fixed", "free"), help="mhe load basis (default fixed)"))
+    advanced(
+        g.add_argument(
+            "--state-prior",
+            metavar="S|evidence",
+            help="mhe: prior std of the initial modal state relative to the data's amplitude (default 1: weak), "
+            "or 'evidence': chosen among 1, 0.1, 0.01, 0.001 by the first window's evidence",
+        )
     )
-    g.add_argument("--stride", help="mhe window step, same units as --window (default 0.05s)")
+    g.add_argument("--window", metavar="TIME", help="mhe window: 0.2s, 200ms or samples (default 0.2s)")
+    g.add_argument("--stride", metavar="TIME", help="mhe window step, as --window (default 0.05s)")
     g.add_argument(
         "--load-model",
         choices=("auto", "constant", "varying", "random_walk", "gust"),
-        help="constant: a steady load; varying (aliases random_walk, gust): a load that follows gusts (mhe: random "
-        "walk with --load-timescale; batch: a gust amplitude); auto (the batch default): varying only when the "
-        "constant load misfits",
+        metavar="NAME",
+        help="auto, constant, varying (random_walk, gust)",
     )
-    g.add_argument(
-        "--load-timescale",
-        type=float,
-        help="mhe --load-model varying: time (s) over which the load's amplitude may change by its own size (1)",
+    advanced(
+        g.add_argument(
+            "--load-timescale",
+            type=float,
+            metavar="S",
+            help="mhe --load-model varying: time (s) over which the load's amplitude may change by its own size (1)",
+        )
     )
-    g.add_argument(
-        "--no-consistency",
-        dest="consistency",
-        action="store_const",
-        const=False,
-        help="mhe: do not skip an unexplained start (load onset) nor restart on data inconsistent with the estimate",
+    advanced(
+        g.add_argument(
+            "--no-consistency",
+            dest="consistency",
+            action="store_const",
+            const=False,
+            help="mhe: do not skip an unexplained start (load onset) nor restart on data inconsistent with it",
+        )
     )
-    p.add_argument("--lambda", dest="lam", type=float, help="fixed Tikhonov weight (mhe, jekf; default: from the data)")
-    p.add_argument(
-        "--lambda-rule",
-        help="data-only rule choosing lambda: mhe knee (default), morozov, gcv; jekf-tuned late-innovation-lr "
-        "(default), prediction-evidence, quasi-optimality (docs/formulations.md)",
+    g.add_argument("--lambda", dest="lam", type=float, metavar="X", help="fixed Tikhonov weight (mhe, jekf)")
+    g.add_argument("--lambda-rule", metavar="NAME", help="rule choosing lambda (docs/formulations.md)")
+    g.add_argument("--modes", type=int, metavar="N", help="membrane modes kept (mhe 40, batch 48)")
+    advanced(
+        g.add_argument("--pressure-bounds", nargs=2, type=float, metavar=("MIN", "MAX"), help="Pa (mhe, cvxpy/ipopt)")
     )
-    g.add_argument("--modes", type=int, help="membrane modes kept (mhe 40, batch and ekf 48, jekf all)")
-    g.add_argument("--pressure-bounds", nargs=2, type=float, metavar=("MIN", "MAX"), help="Pa (mhe, cvxpy/ipopt)")
-    p.add_argument("--initial-load", type=float, help="sign prior, Pa (default: the problem's initial_load)")
-    opt.add(p, "--noise-std")
+    advanced(g.add_argument("--initial-load", type=float, metavar="PA", help="sign prior, Pa (default: the problem's)"))
+    opt.add(g, "--noise-std")
     opt.add(p, "--max-memory")
     opt.add(p, "--force")
     opt.add(p, "--no-plots")
-    p.add_argument("--out", required=True, help=OUT_HELP)
     opt.add(p, "--json")
-    opt.add_channel_options(p)
-    follow.add_options(p)
+    data = opt.add_channel_options(p)
+    follow.add_options(data)
     p.set_defaults(func=run)
 
 
@@ -211,6 +189,7 @@ def _run(args) -> int:
     from wingopt.results.writer import check_writable
     from wingopt.workflows.identify import identify, write_identify_outputs
 
+    cpu0 = sum(os.times()[:4])  # the estimate's CPU time, this process and its children
     check_writable(args.out, inputs=[("--data", args.data), ("--follow", args.follow), ("problem", args.problem)])
     options = identify_options(args)
     problem = load_problem(args.problem)
@@ -219,48 +198,133 @@ def _run(args) -> int:
     channels = opt.channel_map(args, problem)
     if channels is not None and not (args.data or args.follow):
         raise InputError("--columns/--gain/--offset/--time-column/--time-unit: apply to --data or --follow only")
+    simulated = simulated_case(args)
+    check_sizes(args, parse_mesh(args.mesh) if args.mesh is not None else problem.nodes)
     if follow.wants_stream(args):
         return follow.run_stream(args, options, channels)
-    if args.load and not args.t_end > 0:
-        raise InputError(f"t-end = {args.t_end!r}: expected a positive duration (s)")
     run_ = identify(
         problem,
         load=args.load,
-        noise_percent=parse_noise(args.noise) * 100 if args.load else 1.0,
-        seed=args.seed,
         data=args.data,
         dic=args.dic,
         method=args.method,
         model=args.model,
         options=options,
-        truth_nodes=None if args.same_mesh else parse_mesh(args.truth_mesh),
-        t_end=args.t_end,
         nodes=parse_mesh(args.mesh) if args.mesh is not None else None,
         max_memory=parse_size(args.max_memory) if args.max_memory else None,
-        truth=args.truth,
-        truth_prestrain=tuple(args.truth_prestrain) if args.truth_prestrain else None,
-        truth_damping=args.truth_damping,
-        gust=_gust() if args.gust else None,
         channels=channels if args.data else None,
+        **simulated,
     )
     write_identify_outputs(run_, args.out, plots=not args.no_plots)
-    _print(to_jsonable(run_.summary()), args)  # its warnings were logged once, as they arose
+    cpu = os.times()
+    cpu_s = cpu.user + cpu.system + cpu.children_user + cpu.children_system - cpu0
+    _print(to_jsonable(run_.summary()), args, cpu_s)  # its warnings were logged once, as they arose
     return 0
 
 
-def _gust():
+OUT_NAME_SPARE = 32
+"""Bytes the result writer adds to the ``--out`` name for its hidden work directory
+(``.NAME.tmp-PID-XXXXXXXX``, :mod:`wingopt.results.writer`)."""
+
+
+def check_sizes(args, nodes: tuple[int, int]) -> None:
+    """Refuse, before any stage starts, what the run would refuse only later: more ``--modes`` than
+    the mesh has, a ``--stride`` longer than the ``--window`` (default 0.2 s), an ``--out`` name the
+    file system cannot hold with the writer's work-directory suffix."""
+    from wingopt.estimation.options import parse_duration
+    from wingopt.resources import membrane_dofs
+
+    dofs = membrane_dofs(nodes)
+    if args.modes is not None and not 1 <= args.modes <= dofs:
+        raise InputError(f"--modes {args.modes}: expected 1..{dofs} (the {nodes[0]}x{nodes[1]} mesh's dofs)")
+    if args.stride is not None:
+        stride = parse_duration(args.stride, "--stride")
+        window = parse_duration(args.window if args.window is not None else "0.2s", "--window")
+        if type(stride) is type(window) and stride > window:  # both seconds or both samples
+            given = args.window if args.window is not None else "0.2s (the default)"
+            raise InputError(f"--stride {args.stride}: longer than the window, {given}: expected at most the window")
+    name = os.path.basename(os.path.normpath(str(args.out)))
+    parent = os.path.dirname(os.path.abspath(str(args.out)))
+    try:
+        limit = os.pathconf(parent if os.path.isdir(parent) else ".", "PC_NAME_MAX")
+    except (OSError, ValueError):
+        limit = 255
+    if len(os.fsencode(name)) + OUT_NAME_SPARE > limit:
+        raise InputError(
+            f"--out: the name {name[:20]!r}... is {len(os.fsencode(name))} bytes: expected at most "
+            f"{limit - OUT_NAME_SPARE} (the file system's {limit}, less the work directory's suffix)"
+        )
+
+
+SIMULATION_FLAGS = {
+    "noise": "--noise",
+    "seed": "--seed",
+    "truth": "--truth",
+    "truth_mesh": "--truth-mesh",
+    "same_mesh": "--same-mesh",
+    "truth_prestrain": "--truth-prestrain",
+    "truth_damping": "--truth-damping",
+    "t_end": "--t-end",
+    "gust": "--gust",
+}
+"""The options of a simulated case (``--load``): given with measured data or frames they are refused."""
+
+
+def simulated_case(args) -> dict:
+    """The simulation-only options given, as :func:`wingopt.identify`'s keywords (refused without ``--load``)."""
     from wingopt.membrane.loads import Gust
+    from wingopt.problem import parse_mesh
 
-    return Gust()
+    given = [flag for name, flag in SIMULATION_FLAGS.items() if getattr(args, name) is not None]
+    if not args.load:
+        if given:
+            source = "--dic" if args.dic else "--follow" if args.follow else "--data"
+            raise InputError(f"{', '.join(given)}: simulation-only option(s), used with --load only, not with {source}")
+        return {}
+    if args.t_end is not None and not args.t_end > 0:
+        raise InputError(f"t-end = {args.t_end!r}: expected a positive duration (s)")
+    kw = {
+        "noise_percent": None if args.noise is None else parse_noise(args.noise) * 100,
+        "seed": args.seed,
+        "truth": args.truth,
+        "truth_nodes": None if args.truth_mesh is None else parse_mesh(args.truth_mesh),
+        "truth_prestrain": tuple(args.truth_prestrain) if args.truth_prestrain else None,
+        "truth_damping": args.truth_damping,
+        "t_end": args.t_end,
+        "gust": Gust() if args.gust else None,
+    }
+    kw = {k: v for k, v in kw.items() if v is not None}
+    if args.same_mesh:
+        kw["truth_nodes"] = None  # the seed's same-mesh protocol (over --truth-mesh)
+    return kw
 
 
-def _print(summary: dict, args) -> None:
+def route_words(summary: dict) -> str:
+    """What ran, in words: the route (steady, transient, full field, stream) and the estimator; for
+    DIC frames, how many frames of how many points and that the lift is the steady fit of their mean."""
+    route, method = summary.get("route"), summary["method"]
+    if not route:
+        return method
+    est = summary.get("estimator") or {}
+    frames = est.get("frames") if isinstance(est.get("frames"), dict) else None
+    if method == "fullfield" and frames:
+        what = f"{route}, {frames.get('used', frames.get('total'))} frames x {frames.get('points')} points"
+        if est.get("steady_lift_N") is not None and est["steady_lift_N"] == summary["lift_N"]:
+            what += ", steady fit of their mean"
+        return what
+    return f"{route} ({method})"
+
+
+def _print(summary: dict, args, cpu_s: float | None = None) -> None:
+    """The run in one line: route and estimator, lift ± 1 sd, status, errors (simulated), CPU and wall
+    time, output, and how many warning lines were printed above."""
     if args.json:
         print(json.dumps(to_jsonable(summary)))
         return
-    line = f"{summary['method']}: lift {summary['lift_N']:.5g} N"
+    line = route_words(summary)
+    line += f": lift {summary['lift_N']:.5g} N"
     if summary.get("lift_std_N") is not None:
-        line += f" ± {summary['lift_std_N']:.2g}"
+        line += f" ± {summary['lift_std_N']:.2g} N (1 sd)"
     if summary.get("status"):
         line += f" [{summary['status']}]"  # whether to trust it, before the numbers that say how well
     if "load_error" in summary:
@@ -268,7 +332,10 @@ def _print(summary: dict, args) -> None:
             f", load error {summary['load_error']:.4f}, deflection error {summary['deflection_error']:.2e}"
             f" (true lift {summary['true_lift_N']:.5g} N)"
         )
-    line += f", {summary['wall_s']:.2f} s -> {args.out}"
-    if summary.get("warnings"):
-        line += f" ({len(summary['warnings'])} warning(s): see above and summary.json)"
+    if cpu_s is not None:
+        line += f", {cpu_s:.3g} s CPU"
+    line += f", {summary['wall_s']:.3g} s wall -> {args.out}"
+    printed = warnings_printed()
+    if printed:
+        line += f" ({printed} warning{'s' * (printed != 1)} above; summary.json lists them)"
     print(line)

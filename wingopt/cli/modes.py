@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 
 from wingopt import resources
+from wingopt.cli import options as opt
+from wingopt.cli.helptext import Formatter
 from wingopt.errors import InputError
 from wingopt.models import build_model
 from wingopt.problem import load_problem, parse_mesh
@@ -27,11 +28,11 @@ def register(sub, common) -> None:
         description="Undamped natural frequencies (ascending) and eigenvalues of the damped first-order "
         "system (positive imaginary part, ascending) of a problem's FE model.",
         epilog=EXAMPLE,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=Formatter,
     )
     p.add_argument("problem", help="problem file (.toml) or built-in name (membrane, plate)")
-    p.add_argument("--mesh", help="nodes in x and y, e.g. 25x13 (default: the problem's mesh)")
-    p.add_argument("--count", type=int, default=4, help="how many modes (default 4)")
+    opt.add(p, "--mesh")
+    p.add_argument("--count", type=int, default=4, metavar="N", help="how many modes (default 4)")
     p.add_argument("--json", action="store_true", help="print JSON on stdout")
     p.set_defaults(func=run)
 

@@ -7,13 +7,13 @@ same limits runs too and the figures compare the two.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 
 from wingopt import resources
 from wingopt.cli import OUT_HELP
 from wingopt.cli import options as opt
+from wingopt.cli.helptext import Formatter, add_help_all, advanced
 from wingopt.errors import InputError
 from wingopt.optim.registry import BACKENDS, FALLBACK
 from wingopt.plate.shapes import SHAPES
@@ -27,73 +27,59 @@ PLANT_KINDS = ("auto", "dense", "modal")
 
 ORDER = 20
 
-EXAMPLE = """voltage limits: --method lqr saturates at --vmin/--vmax when given and is unlimited otherwise
-  (the seed's controller); --method qp defaults to the problem's [actuators] (-500/+1500 V) and also
-  runs the LQR saturated at the same limits for comparison.
+USAGE = "%(prog)s PROBLEM --shape SHAPE --out DIR [options]"
 
-examples:
+EXAMPLE = """voltage limits: qp keeps the problem's [actuators] (-500/+1500 V) and runs the LQR saturated there
+  too; lqr saturates at --vmin/--vmax when given (the seed's law: unlimited otherwise).
+examples (more, and a plant that is not the model, in docs/cli.md and docs/control_qp.md):
   wingopt morph plate --shape twist --method lqr --out runs/twist-lqr
-  wingopt morph plate --shape bending --method lqr --vmin -500 --vmax 1500 --out runs/bend-sat
-  wingopt morph plate --shape camber --method qp --horizon 30 --solver osqp --out runs/camber-qp --json
-  wingopt morph plate --shape twist --method lqr --mesh 7x31 --t-end 4 --out runs/twist-7x31
-  wingopt morph plate --shape camber --plant-scale moduli=1.1,d33=0.8,damping=2 --out runs/camber-mismatch
-  wingopt morph plate --shape camber --plant my_plate.toml --hysteresis 0.15 --creep 0.05 --out runs/camber-real
-
-a plant that is not the model: --plant PLANT.toml (a plate problem of the same geometry and patches)
-  and/or --plant-scale NAME=FACTOR,... (moduli, skin, batten, e1, e2, g12, d33, damping, density);
-  --hysteresis/--creep/--sensor-bias act on the plant only. The summary reports the plant's best
-  shape within the limits (plant_static_optimum_error) and the excess over it (excess_error)."""
+  wingopt morph plate --shape camber --plant-scale moduli=1.1,d33=0.8 --hysteresis 0.15 --out runs/c"""
 
 
 def register(sub, common) -> None:
     p = sub.add_parser(
         "morph",
         parents=[common],
-        help="morph the plate wing into twist, camber or bending (LQR/LQG or QP)",
-        description="Closed-loop morphing of the piezo-actuated plate wing from rest into a Table 5.1 shape, "
-        "simulated on the full-order FE model with the controller sampling the nine patch sensors.",
+        help="morph the plate wing into twist, camber or bending (QP or LQR/LQG)",
+        usage=USAGE,
+        description="Closed-loop morphing of the piezo-actuated plate wing into a Table 5.1 shape.",
         epilog=EXAMPLE,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=Formatter,
     )
+    add_help_all(p)
     p.add_argument("problem", help="problem file (.toml) or built-in name (plate)")
-    p.add_argument("--shape", required=True, help="target shape: twist, camber or bending")
-    p.add_argument("--method", default="qp", help="controller: qp (default) or lqr")
-    p.add_argument("--vmin", type=float, help="lowest patch voltage, V")
-    p.add_argument("--vmax", type=float, help="highest patch voltage, V")
-    p.add_argument("--t-end", type=float, default=2.0, help="duration, s (default 2)")
-    p.add_argument("--mesh", help="nodes in x and y, e.g. 13x61 (default: the problem's)")
-    p.add_argument("--period", type=float, default=0.01, help="control period, s (default 0.01 = 100 Hz)")
-    p.add_argument("--sensor-noise", type=float, default=0.0, help="patch-sensor noise std, sensor units (m)")
-    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
-    p.add_argument(
+    p.add_argument("--shape", required=True, metavar="SHAPE", help="twist, camber or bending")
+    opt.add(p, "--method", default="qp", help="controller: qp (default) or lqr")
+    p.add_argument("--vmin", type=float, metavar="V", help="lowest patch voltage, V")
+    p.add_argument("--vmax", type=float, metavar="V", help="highest patch voltage, V")
+    opt.add(p, "--t-end", default=2.0, help="duration, s (default 2)")
+    opt.add(p, "--mesh", help="nodes in x and y, e.g. 13x61 (default: the problem's)")
+    advanced(p.add_argument("--period", type=float, default=0.01, metavar="S", help="control period, s (0.01)"))
+    advanced(p.add_argument("--sensor-noise", type=float, default=0.0, metavar="STD", help="sensor noise std, m"))
+    advanced(opt.add(p, "--seed"))
+    m = p.add_argument_group("a plant that is not the model (docs/control_qp.md)")
+    m.add_argument(
         "--plant",
         default="auto",
-        help="the simulated plate: a problem file (.toml) or built-in name for a plant that is not the model, "
-        "or the integrator of the model's plate: auto (default), dense or modal",
+        metavar="PLANT",
+        help="plate problem file or name; or auto, dense, modal (the model's own plate)",
     )
-    p.add_argument("--plant-scale", help="plant parameter factors, e.g. moduli=1.1,d33=0.8,damping=2")
-    p.add_argument("--hysteresis", type=float, help="plant patch hysteresis: major-loop width, fraction (e.g. 0.15)")
-    p.add_argument("--creep", type=float, help="plant patch creep gain, fraction (with --hysteresis or alone)")
-    p.add_argument("--sensor-bias", type=float, help="constant offset of every patch sensor, sensor units (m)")
+    m.add_argument("--plant-scale", metavar="NAME=F,...", help="factors: moduli, skin, d33, damping, ...")
+    m.add_argument("--hysteresis", type=float, metavar="W", help="patch hysteresis loop width (e.g. 0.15)")
+    m.add_argument("--creep", type=float, metavar="C", help="patch creep gain, a fraction")
+    m.add_argument("--sensor-bias", type=float, metavar="M", help="offset of every patch sensor, m")
     g = p.add_argument_group("lqr")
-    g.add_argument("--r", type=float, help="LQR input weight R = r I, V^-2 (default 1e-14)")
+    g.add_argument("--r", type=float, metavar="R", help="LQR input weight R = r I, V^-2 (default 1e-14)")
     q = p.add_argument_group("qp")
-    q.add_argument("--horizon", type=int, help="prediction horizon, steps")
-    q.add_argument(
-        "--solver",
-        help=f"QP backend: {', '.join(BACKENDS)} (default {BACKENDS[0]} when installed, else {FALLBACK})",
-    )
-    q.add_argument("--mode", help="closed-loop (receding horizon) or open-loop")
-    q.add_argument("--no-compare", action="store_true", help="qp: skip the saturated-LQR comparison run")
-    q.add_argument(
-        "--no-offset-free", action="store_true", help="qp: no disturbance model nor target calculation (the QP before)"
-    )
-    p.add_argument(
-        "--max-memory", metavar="SIZE", help="refuse runs estimated to need more (e.g. 4G; default: what is available)"
-    )
+    q.add_argument("--horizon", type=int, metavar="N", help="prediction horizon, steps")
+    opt.add(q, "--solver", help=f"QP backend: {', '.join(BACKENDS)} ({BACKENDS[0]}, else {FALLBACK})")
+    advanced(q.add_argument("--mode", metavar="MODE", help="closed-loop (receding horizon) or open-loop"))
+    q.add_argument("--no-compare", action="store_true", help="skip the saturated-LQR comparison run")
+    q.add_argument("--no-offset-free", action="store_true", help="no disturbance model (the QP before)")
+    opt.add(p, "--max-memory")
     opt.add(p, "--force")
     p.add_argument("--no-plots", action="store_true", help="skip the figures")
-    p.add_argument("--out", required=True, help=OUT_HELP)
+    p.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     p.set_defaults(func=run)
 

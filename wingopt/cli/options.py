@@ -42,12 +42,9 @@ class DeprecatedOptionWarning(FutureWarning):
     """An old option spelling was used: it still works; the message names the new one."""
 
 
-MAX_MEMORY_HELP = "refuse runs estimated to need more (e.g. 4G; default: what is available)"
+MAX_MEMORY_HELP = "refuse a run estimated to need more (e.g. 4G)"
 
-LONG_RUN_HELP = (
-    "start a run estimated to take longer than the limit (1 day of CPU, wingopt.resources.MAX_SECONDS); "
-    "without it such a run is refused before any work"
-)
+LONG_RUN_HELP = "start a run estimated over 1 day of CPU (refused)"
 """The ``--force`` help of the commands whose size estimate can refuse a run for its time
 (identify, demo, morph: :func:`wingopt.resources.long_runs`)."""
 
@@ -56,13 +53,14 @@ SHARED: dict[str, dict] = {
     "--n-seeds": {"type": int, "metavar": "N", "help": "how many noise seeds"},
     "--mesh": {"metavar": "NXxNY", "help": "nodes in x and y, e.g. 25x13 (default: the problem's mesh)"},
     "--truth-mesh": {"default": "49x25", "metavar": "NXxNY", "help": "mesh of the simulated truth (default 49x25)"},
-    "--t-end": {"type": float, "help": "duration, s"},
+    "--t-end": {"type": float, "metavar": "S", "help": "duration, s"},
     "--max-memory": {"metavar": "SIZE", "help": MAX_MEMORY_HELP},
     "--force": {"action": "store_true", "help": LONG_RUN_HELP},
-    "--noise-std": {"type": float, "help": "sensor noise std, stretch units (default: estimated from the data)"},
-    "--solver": {"help": "numerical solver"},
+    "--noise-std": {"type": float, "metavar": "STD", "help": "sensor noise std, stretch (default: from the data)"},
+    "--solver": {"metavar": "NAME", "help": "numerical solver"},
+    "--method": {"metavar": "NAME", "help": "algorithm"},
     "--workers": {"type": int, "metavar": "N", "help": "worker processes"},
-    "--r": {"type": float, "help": "LQR input weight R = r I, V^-2"},
+    "--r": {"type": float, "metavar": "R", "help": "LQR input weight R = r I, V^-2"},
     "--no-plots": {"action": "store_true", "help": "skip the figures"},
     "--json": {"action": "store_true", "help": "print the summary as JSON on stdout"},
     "--resume": {"action": "store_true", "help": "keep the records already in DIR/records.jsonl"},
@@ -79,6 +77,10 @@ DEPRECATED: dict[str, tuple[str, str]] = {
 """Old spelling -> (new spelling, the command that had it). Hidden from ``--help``; they warn once."""
 
 PER_COMMAND: dict[str, str] = {
+    "--seed": "identify: unset is None (the simulation's default, 0), so that one given with measured data is "
+    "refused by name; morph: 0",
+    "--truth-mesh": "identify: unset is None (the simulation's default, 49x25), so that one given with measured "
+    "data is refused by name; compare: 49x25",
     "--method": "the command's algorithm: an estimator (identify), a controller (morph), a fit (dic-sensors)",
     "--solver": "the command's solver: identify's MHE window solver (numpy, cvxpy, ipopt), morph's QP backend",
     "--count": "how many: modes (modes), sensors (design-sensors)",
@@ -201,20 +203,21 @@ def _number(value: str, option: str, name: str) -> float:
     return v
 
 
-def add_channel_options(parser) -> None:
-    """``--columns``, ``--gain``, ``--offset``, ``--time-column``, ``--time-unit`` (identify's CSV data)."""
+def add_channel_options(parser):
+    """``--columns``, ``--gain``, ``--offset``, ``--time-column``, ``--time-unit`` (identify's CSV data);
+    returns their argument group."""
     from wingopt.measurements.channels import TIME_UNITS
 
-    g = parser.add_argument_group(
-        "DAQ columns and calibration (measured data; override the problem's [measurements] table)",
-        "stretch = gain * (raw - offset), per sensor; sensors not named keep their own column, gain 1, offset 0; "
-        "the map used is recorded in summary.json",
-    )
-    g.add_argument("--columns", metavar="S1=COL,...", help="the CSV column of each sensor, e.g. S1=ch1,S2=ch2")
-    g.add_argument("--gain", metavar="S1=G,...", help="stretch per raw unit, per sensor (or one number for all)")
-    g.add_argument("--offset", metavar="S1=O,...", help="raw reading at zero stretch, per sensor (or one number)")
+    # stretch = gain * (raw - offset) per sensor; sensors not named keep their column, gain 1, offset 0
+    g = parser.add_argument_group("measured data (--data, --follow; stretch = gain * (raw - offset))")
+    g.add_argument("--columns", metavar="S1=COL,...", help="each sensor's CSV column, e.g. S1=ch1,S2=ch2")
+    g.add_argument("--gain", metavar="S1=G,...", help="stretch per raw unit, per sensor (or one for all)")
+    g.add_argument("--offset", metavar="S1=O,...", help="raw reading at zero stretch, per sensor (or one)")
     g.add_argument("--time-column", metavar="NAME", help="the time column (default t)")
-    g.add_argument("--time-unit", choices=tuple(TIME_UNITS), help="unit of the time column (default s)")
+    g.add_argument(
+        "--time-unit", choices=tuple(TIME_UNITS), metavar="UNIT", help=f"time unit: {', '.join(TIME_UNITS)} (default s)"
+    )
+    return g
 
 
 def channel_options_given(args) -> bool:

@@ -11,6 +11,8 @@ from __future__ import annotations
 import argparse
 import json
 
+from wingopt.cli import OUT_HELP
+from wingopt.cli.helptext import Formatter
 from wingopt.cli.options import add
 from wingopt.errors import InputError
 
@@ -77,15 +79,10 @@ def register(sub, common) -> None:
         "scheduler or a batch cluster. One JSON record per task in DIR/records.jsonl, the per-case table in "
         "DIR/table.csv (and .parquet with pyarrow), DIR/summary.json.",
         epilog=EXAMPLE,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=Formatter,
     )
     p.add_argument("spec", help="sweep spec (TOML)")
-    p.add_argument(
-        "--out",
-        required=True,
-        help="output directory: new, empty or an earlier sweep's (it may hold only the files wingopt wrote there, "
-        "unchanged: a file of yours there is refused, never overwritten)",
-    )
+    p.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
     p.add_argument("--resume", action="store_true", help="keep DIR/records.jsonl and run only what is missing")
     add_engine_options(p)
     p.add_argument("--json", action="store_true", help="print the summary as JSON")

@@ -4,7 +4,8 @@
 candidate linearised along expected responses (:mod:`~wingopt.design.information`), Bayesian
 criteria (:mod:`~wingopt.design.criteria`: A, lift, D; :mod:`~wingopt.design.risk`: the
 estimator's expected bias + noise), convex relaxation with a bound, rounding, swaps and greedy
-(:mod:`~wingopt.design.selection`). :mod:`~wingopt.design.montecarlo` runs the real estimator on
+(:mod:`~wingopt.design.selection`); the candidates' information is held packed
+(:mod:`~wingopt.design.stack`). :mod:`~wingopt.design.montecarlo` runs the real estimator on
 layouts as a map over independent tasks. An engine: it reads no problem file, writes no file and
 draws nothing (:mod:`wingopt.workflows.design` does, through :mod:`wingopt.results` and
 :mod:`wingopt.plots`). See ``docs/sensor_design.md``.

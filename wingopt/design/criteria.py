@@ -29,9 +29,10 @@ import scipy.linalg as sla
 
 from wingopt.design.information import ModalSensitivity, SegmentInformation
 from wingopt.design.priors import LoadPrior
+from wingopt.design.stack import InfoStack, TransformedStack
 from wingopt.errors import InputError
 
-__all__ = ["LINEAR_CRITERIA", "LinearCriterion", "state_prior_std", "psd_sqrt"]
+__all__ = ["LINEAR_CRITERIA", "LinearCriterion", "state_prior_std", "psd_sqrt", "reduced_value"]
 
 LINEAR_CRITERIA = ("a", "lift", "d")
 
@@ -77,13 +78,17 @@ class LinearCriterion:
         cls,
         kind: str,
         sens: ModalSensitivity,
-        infos: list[SegmentInformation],
+        infos: list[SegmentInformation] | InfoStack,
         prior: LoadPrior,
         q0: np.ndarray,
         aggregate: str = "mean",
         state_prior: float = 1.0,
     ) -> LinearCriterion:
-        """Whiten the information of each nominal response with ``prior`` and the state prior."""
+        """Whiten the information of each nominal response with ``prior`` and the state prior.
+
+        ``infos``: a list of :class:`SegmentInformation`, or the risk's
+        :class:`~wingopt.design.stack.InfoStack` (then read through a
+        :class:`~wingopt.design.stack.TransformedStack`: no second copy of the information)."""
         if kind not in LINEAR_CRITERIA:
             raise InputError(f"criterion = {kind!r}: expected one of {', '.join(LINEAR_CRITERIA)}")
         if aggregate not in ("mean", "max"):
@@ -108,15 +113,19 @@ class LinearCriterion:
             W[ms2:, ms2:] = np.outer(y, y)
             prior_val = float(ell @ prior.cov @ ell)
         const = prior_val - float(np.trace(W))
-        info = np.stack([L.T @ inf.total @ L for inf in infos], axis=1)
-        J = len(infos)
+        if isinstance(infos, InfoStack):  # the risk's packed information: whitened anew when read
+            info = TransformedStack(infos, 1, L / infos.scale[:, None])
+            J = infos.shape[1]
+        else:
+            info = np.stack([L.T @ inf.total @ L for inf in infos], axis=1)
+            J = len(infos)
         return cls(
             kind, info, np.broadcast_to(W, (J, d, d)).copy(), np.full(J, const), np.full(J, prior_val), aggregate
         )
 
     @property
     def count(self) -> int:
-        return self.info.shape[0]
+        return len(self.info)
 
     def per_nominal(self, sums: np.ndarray) -> np.ndarray:
         """``(B, J)`` for summed whitened information ``(B, J, d, d)``: the *squared* relative error
@@ -163,7 +172,7 @@ class LinearCriterion:
         dropped = 0.0
         for j in range(J):
             if self.kind == "d":
-                tot = self.info[:, j].sum(axis=0)
+                tot = sum(self.info[a : a + 256, j].sum(axis=0) for a in range(0, N, 256))
                 w, U = sla.eigh(0.5 * (tot + tot.T))
                 w, U = w[::-1], U[:, ::-1][:, :r]
                 dropped = max(dropped, float(w[r:].sum() / max(w.sum(), 1e-300)))
@@ -172,5 +181,18 @@ class LinearCriterion:
                 w, U = w[::-1], U[:, ::-1][:, :r]
                 weight_r[j] = np.diag(np.maximum(w[:r], 0.0))
                 dropped = max(dropped, float(np.maximum(w[r:], 0).sum() / max(w.sum(), 1e-300)))
-            info_r[:, j] = U.T @ self.info[:, j] @ U
+            for a in range(0, N, 256):  # in chunks: the candidates' dense matrices do not fit at once
+                info_r[a : a + 256, j] = U.T @ self.info[a : a + 256, j] @ U
         return info_r, weight_r, const_r, dropped
+
+
+def reduced_value(linear: LinearCriterion, info_r, weight_r, const_r, layout) -> float:
+    """The reduced criterion of a layout (what the relaxation bound is a bound of)."""
+    S = info_r[np.asarray(layout)].sum(axis=0)  # (J, r, r)
+    eye = np.eye(S.shape[-1])
+    if linear.kind == "d":
+        v = -np.linalg.slogdet(S + eye)[1]
+        return float(v.mean() if linear.aggregate == "mean" else v.max())
+    tr = np.trace(np.linalg.solve(S + eye, weight_r), axis1=-2, axis2=-1)
+    v = (const_r + tr) / linear.scale
+    return float(np.sqrt(v.mean() if linear.aggregate == "mean" else v.max()))

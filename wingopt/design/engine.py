@@ -25,20 +25,25 @@ import numpy as np
 
 from wingopt import resources
 from wingopt.design.candidates import CandidateSet, parse_candidates
-from wingopt.design.criteria import LINEAR_CRITERIA, LinearCriterion
-from wingopt.design.information import InformationSettings, ModalSensitivity, SegmentInformation
+from wingopt.design.criteria import LINEAR_CRITERIA, LinearCriterion, state_prior_std
+from wingopt.design.criteria import reduced_value as _reduced_value
+from wingopt.design.information import InformationSettings, ModalSensitivity
 from wingopt.design.priors import PRIORS, gp_prior, smooth_loads, tikhonov_prior
 from wingopt.design.risk import BayesRisk
 from wingopt.design.selection import greedy, overlap_matrix, relax, round_weights, swap_improve
+from wingopt.design.stack import information_stack
 from wingopt.errors import InputError
 from wingopt.membrane import MembraneModel
 from wingopt.status import RunStatus, from_solver_statuses
 
-__all__ = ["CRITERIA", "DesignSettings", "DesignResult", "design_sensors", "predicted_error_field"]
+__all__ = ["CRITERIA", "STAGES", "DesignSettings", "DesignResult", "design_sensors", "predicted_error_field"]
 
 log = logging.getLogger(__name__)
 
 CRITERIA = ("risk", *LINEAR_CRITERIA)
+
+STAGES = ("model", "information", "criteria", "relaxation", "greedy", "swaps")
+"""The stages a design reports to its ``progress`` callable, in order."""
 
 DEFAULT_LENGTH = 0.2
 """Default length scale of the load prior and of the nominal loads, as a fraction of the chord."""
@@ -172,19 +177,6 @@ def _length(problem, s: DesignSettings) -> float:
     return DEFAULT_LENGTH * problem.width if s.length_scale is None else s.length_scale
 
 
-def _subset(info: SegmentInformation, index) -> SegmentInformation:
-    idx = np.asarray(index, dtype=int)
-    return SegmentInformation(info.window[idx], info.rest[idx], info.peak[idx], info.samples)
-
-
-def _state_scale(risk: BayesRisk, sens: ModalSensitivity, q0) -> np.ndarray:
-    """The risk criterion whitens the state block: the same scaling for a raw information sum."""
-    from wingopt.design.criteria import state_prior_std
-
-    S = np.concatenate([state_prior_std(sens, q0), np.ones(sens.m)])
-    return S[:, None] * S[None, :]
-
-
 def _with_problem_sensors(problem, cands: CandidateSet) -> tuple[CandidateSet, np.ndarray | None]:
     """Append the problem's own sensors (the default layout) unless already candidates."""
     if not problem.sensors:
@@ -212,6 +204,7 @@ def design_sensors(
     count: int,
     candidates: CandidateSet | str | None = None,
     settings: DesignSettings | None = None,
+    progress=None,
     **overrides,
 ) -> DesignResult:
     """Choose ``count`` sensor rectangles for a membrane ``problem``.
@@ -225,6 +218,9 @@ def design_sensors(
         A candidate set or a ``--candidates`` SPEC (default: the problem's sensor sizes on the
         half-element lattice).
     settings : DesignSettings, optional
+    progress : callable, optional
+        ``progress(stage, fraction)`` as the work goes: ``stage`` one of :data:`STAGES`, ``fraction``
+        of it done (swaps: an estimate, their passes are not known ahead). The command's stage lines.
     **overrides
         Fields of :class:`DesignSettings` (e.g. ``criterion="a"``).
     """
@@ -259,50 +255,66 @@ def design_sensors(
         raise InputError(f"count = {count}: more than the {len(cands)} candidates")
     nominal = s.nominal_count or (12 if s.criterion == "risk" else 4)
     resources.check(resources.estimate_design(problem.nodes, len(cands), nominal, count))
+    say = progress or (lambda stage, fraction: None)
+    say("model", 0.0)
     model = MembraneModel.from_problem(problem.with_sensors(()))
     sens = ModalSensitivity.from_model(model, s.information)
     chat = sens.modal_matrices(cands.rects)
     q0 = sens.initial_state()
     loads = nominal_loads(problem, s)
-    infos = [sens.information(chat, sens.modal_load(model.project(P)), q0) for P in loads]
+    # The information of every candidate, packed (wingopt.design.stack): the design's memory.
+    scale = np.concatenate([state_prior_std(sens, q0), np.ones(sens.m)])
+    modal = [sens.modal_load(model.project(P)) for P in loads]
+    stack = information_stack(sens, chat, modal, q0, scale, progress=lambda f: say("information", f))
     timings["information"] = time.perf_counter() - t0
     log.info(
-        "information of %d candidates x %d nominal loads in %.1f s", len(cands), len(loads), timings["information"]
-    )
+        "information of %d candidates x %d nominal loads in %.1f s (%.0f MB)",
+        len(cands), len(loads), timings["information"], stack.nbytes / 2**20,
+    )  # fmt: skip
 
     t1 = time.perf_counter()
+    say("criteria", 0.0)
     # The risk over all candidates only when it is the criterion; else on the layouts reported.
-    risk = BayesRisk.build(sens, infos, loads, q0, s.aggregate) if s.criterion == "risk" else None
+    risk = BayesRisk.build(sens, stack, loads, q0, s.aggregate) if s.criterion == "risk" else None
     if s.prior == "gp":
         prior = gp_prior(model, _length(problem, s), abs(problem.identification.initial_load))
     else:
-        mean_sum = np.stack([np.stack([i.window.mean(axis=0), i.total.mean(axis=0)]) for i in infos])[None] * count
-        r_ = risk or BayesRisk.build(sens, [_subset(i, [0]) for i in infos], loads, q0)
-        prior = tikhonov_prior(model, float(np.mean(r_.rule_lambdas(mean_sum * _state_scale(r_, sens, q0), count))))
+        mean_sum = stack.mean()[None] * count
+        r_ = risk or BayesRisk.build(sens, stack.take([0]), loads, q0)
+        prior = tikhonov_prior(model, float(np.mean(r_.rule_lambdas(mean_sum, count))))
     kind = "a" if s.criterion == "risk" else s.criterion
-    linear = LinearCriterion.build(kind, sens, infos, prior, q0, s.aggregate)
+    linear = LinearCriterion.build(kind, sens, stack, prior, q0, s.aggregate)
     timings["criteria"] = time.perf_counter() - t1
     log.info("criteria done at %.1f s", time.perf_counter() - t0)
     overlap = None if s.allow_overlap else overlap_matrix(cands.rects)
 
     t2 = time.perf_counter()
-    rel = relax(linear, count, s.rank)
+    say("relaxation", 0.0)
+    reduced = linear.reduced(s.rank)
+    with stack.spilled():  # the solver's copy of the SDP is large: the information waits on disk
+        rel = relax(linear, count, s.rank, reduced=reduced)
     timings["relaxation"] = time.perf_counter() - t2
     log.info("relaxation done at %.1f s", time.perf_counter() - t0)
     rounded = round_weights(rel.weights, count, overlap)
     t3 = time.perf_counter()
-    g_layout, _ = greedy(linear, count, overlap)
+    crit = risk if risk is not None else linear
+    greedy_risk = s.criterion == "risk" and count <= 8 and s.swap_passes > 0
+    share = 0.5 if greedy_risk else 1.0
+    g_layout, _ = greedy(linear, count, overlap, tick=lambda f: say("greedy", share * f))
+    starts = {"relaxation": rounded, "greedy": g_layout}
+    if greedy_risk:
+        # greedy on the risk itself is a third start (costly for many sensors: K batched passes)
+        starts["greedy-risk"] = greedy(risk, count, overlap, tick=lambda f: say("greedy", 0.5 + 0.5 * f))[0]
     timings["greedy"] = time.perf_counter() - t3
     log.info("greedy done at %.1f s", time.perf_counter() - t0)
-    crit = risk if risk is not None else linear
-    starts = {"relaxation": rounded, "greedy": g_layout}
-    if s.criterion == "risk" and count <= 8 and s.swap_passes > 0:
-        # greedy on the risk itself is a third start (costly for many sensors: K batched passes)
-        starts["greedy-risk"] = greedy(risk, count, overlap)[0]
     t4 = time.perf_counter()
     best, best_val, best_from = None, np.inf, None
-    for name, start in starts.items():
-        lay, path = swap_improve(crit, start, overlap, max_passes=s.swap_passes)
+    for n, (name, start) in enumerate(starts.items()):
+        # passes done -> a fraction of this start's swaps (how many passes it takes is not known)
+        lay, path = swap_improve(
+            crit, start, overlap, max_passes=s.swap_passes,
+            tick=lambda p, n=n: say("swaps", (n + p / (np.floor(p) + 2)) / len(starts)),
+        )  # fmt: skip
         if path[-1] < best_val:
             best, best_val, best_from = lay, path[-1], name
     timings["swaps"] = time.perf_counter() - t4
@@ -311,12 +323,12 @@ def design_sensors(
     if risk is None:
         keep = [best, rounded, g_layout] + ([default_idx] if default_idx is not None else [])
         sub = np.unique(np.concatenate(keep))
-        risk = BayesRisk.build(sens, [_subset(i, sub) for i in infos], loads, q0, s.aggregate)
+        risk = BayesRisk.build(sens, stack.take(sub), loads, q0, s.aggregate)
         where = {int(c): k for k, c in enumerate(sub)}
         risk_index = np.array([where[int(c)] for c in best])
     else:
         risk_index = np.asarray(best)
-    info_r, weight_r, const_r, _ = linear.reduced(s.rank)
+    info_r, weight_r, const_r, _ = reduced
     red = _reduced_value(linear, info_r, weight_r, const_r, best)
     relaxation = {
         "criterion": kind,
@@ -350,7 +362,7 @@ def design_sensors(
         "risk_relative_load_error": float(risk.value(risk_index)),
         "risk_per_nominal": [float(v) for v in risk.per_nominal(risk.layout_sum(risk_index)[None], count)[0]],
         "a_relative_posterior_std": float(
-            linear.value(best) if kind == "a" else LinearCriterion.build("a", sens, infos, prior, q0).value(best)
+            linear.value(best) if kind == "a" else LinearCriterion.build("a", sens, stack, prior, q0).value(best)
         ),
         "nominal_loads": [P.description for P in loads],
     }
@@ -366,18 +378,6 @@ def design_sensors(
         problem, s, cands, np.asarray(best), float(best_val), pred, relaxation, baselines, timings, warnings,
         risk, sens, linear, risk_index,
     )  # fmt: skip
-
-
-def _reduced_value(linear: LinearCriterion, info_r, weight_r, const_r, layout) -> float:
-    """The reduced criterion of a layout (what the relaxation bound is a bound of)."""
-    S = info_r[np.asarray(layout)].sum(axis=0)  # (J, r, r)
-    eye = np.eye(S.shape[-1])
-    if linear.kind == "d":
-        v = -np.linalg.slogdet(S + eye)[1]
-        return float(v.mean() if linear.aggregate == "mean" else v.max())
-    tr = np.trace(np.linalg.solve(S + eye, weight_r), axis1=-2, axis2=-1)
-    v = (const_r + tr) / linear.scale
-    return float(np.sqrt(v.mean() if linear.aggregate == "mean" else v.max()))
 
 
 def predicted_error_field(result: DesignResult, nx: int = 57, ny: int = 29):

@@ -92,7 +92,7 @@ def shortlist(result, size: int) -> list[np.ndarray]:
     crit = result.risk if result.settings.criterion == "risk" else result.linear
     best = [int(i) for i in result.layout]
     K = len(best)
-    from wingopt.design.selection import overlap_matrix
+    from wingopt.design.selection import _evaluate, overlap_matrix
 
     ov = None if result.settings.allow_overlap else overlap_matrix(result.candidates.rects)
     out: list[np.ndarray] = [np.array(best)]
@@ -106,7 +106,7 @@ def shortlist(result, size: int) -> list[np.ndarray]:
     neigh, vals = [], []
     for k in range(K):
         others = best[:k] + best[k + 1 :]
-        base = crit.info[others].sum(axis=0)
+        base = crit.layout_sum(others)
         free = np.ones(crit.count, bool)
         free[best] = False
         if ov is not None:
@@ -114,8 +114,7 @@ def shortlist(result, size: int) -> list[np.ndarray]:
         cand = np.flatnonzero(free)
         if cand.size == 0:
             continue
-        sums = base[None] + crit.info[cand]
-        vals.append(crit.values(sums, K))
+        vals.append(_evaluate(crit, base, cand, K))  # chunked: the dense sums of all N would not fit
         neigh += [others[:k] + [int(c)] + others[k:] for c in cand]
     if neigh:
         for j in np.argsort(np.concatenate(vals)):
@@ -171,7 +170,7 @@ def adopt(result, reranked: Reranked):
     """A copy of a ``risk`` design with the Monte Carlo winner as its layout (predictions redone)."""
     import dataclasses
 
-    from wingopt.design.engine import _reduced_value
+    from wingopt.design.criteria import reduced_value as _reduced_value
 
     if result.settings.criterion != "risk":
         raise InputError(f"criterion = {result.settings.criterion!r}: Monte Carlo re-ranking adopts risk designs only")

@@ -32,6 +32,7 @@ import scipy.linalg as sla
 
 from wingopt.design.criteria import state_prior_std
 from wingopt.design.information import ModalSensitivity, SegmentInformation
+from wingopt.design.stack import InfoStack, dense_stack
 from wingopt.estimation.regularization import KNEE_EXCESS, KNEE_SAFETY
 from wingopt.fe import integrate
 
@@ -49,7 +50,7 @@ class BayesRisk:
     of the whole record (state part whitened by the state prior).
     """
 
-    info: np.ndarray
+    info: InfoStack
     m: int
     ms2: int
     US: np.ndarray  # (m, m): U_c S_c
@@ -67,18 +68,21 @@ class BayesRisk:
     def build(
         cls,
         sens: ModalSensitivity,
-        infos: list[SegmentInformation],
+        infos: list[SegmentInformation] | InfoStack,
         loads,
         q0: np.ndarray,
         aggregate: str = "mean",
         state_prior: float = 1.0,
     ) -> BayesRisk:
-        """``loads``: the nominal pressures (callables), one per entry of ``infos``."""
+        """``loads``: the nominal pressures (callables), one per entry of ``infos`` (a list of
+        :class:`SegmentInformation`, or the :class:`~wingopt.design.stack.InfoStack` of
+        :func:`~wingopt.design.stack.information_stack`, whitened with ``state_prior`` 1)."""
         model = sens.model
         ms2 = 2 * sens.settings.state_modes
-        S = np.concatenate([state_prior_std(sens, q0, state_prior), np.ones(sens.m)])
-        info = np.stack([np.stack([inf.window, inf.total], axis=1) for inf in infos], axis=1)
-        info *= S[:, None] * S[None, :]  # whiten the state block (u untouched)
+        # The information, packed (wingopt.design.stack): built here from a list, or given as a stack.
+        if not isinstance(infos, InfoStack):
+            infos = dense_stack(infos, np.concatenate([state_prior_std(sens, q0, state_prior), np.ones(sens.m)]))
+        info = infos
         Lam = model.regularizer.toarray()
         R = sla.cholesky(0.5 * (Lam + Lam.T))  # Lam = R^T R
         C = sla.solve_triangular(R, sens.input_matrix.T, trans="T").T  # B R^-1, (m, n_f)
@@ -122,7 +126,7 @@ class BayesRisk:
 
     @property
     def count(self) -> int:
-        return self.info.shape[0]
+        return len(self.info)
 
     def _load_information(self, F: np.ndarray) -> np.ndarray:
         """Schur complement on the modal load, state prior added: ``(B, m, m)``."""
@@ -215,7 +219,7 @@ class BayesRisk:
         return v.mean(axis=1) if self.aggregate == "mean" else v.max(axis=1)
 
     def layout_sum(self, index) -> np.ndarray:
-        return self.info[np.asarray(index, dtype=int)].sum(axis=0)
+        return self.info.sum(index)
 
     def value(self, index) -> float:
         index = np.atleast_1d(np.asarray(index, dtype=int))

@@ -76,19 +76,20 @@ class Relaxation:
     dropped: float
 
 
-def relax(criterion, count: int, rank: int = 12, solver: str | None = None) -> Relaxation:
+def relax(criterion, count: int, rank: int = 12, solver: str | None = None, reduced=None) -> Relaxation:
     """Solve the convex relaxation of a :class:`~wingopt.design.criteria.LinearCriterion`.
 
     The problem is cut to ``rank`` leading whitened directions per nominal response
     (:meth:`~wingopt.design.criteria.LinearCriterion.reduced`); the bound is for that reduced
-    criterion (``dropped`` says how much information the cut ignores).
+    criterion (``dropped`` says how much information the cut ignores). ``reduced``: that reduction,
+    when already computed (``criterion.reduced(rank)``).
     """
     import cvxpy as cp
 
     N = criterion.count
     if not 1 <= count <= N:
         raise InputError(f"count = {count!r}: expected 1..{N} (the number of candidates)")
-    info_r, weight_r, const_r, dropped = criterion.reduced(rank)
+    info_r, weight_r, const_r, dropped = criterion.reduced(rank) if reduced is None else reduced
     r = info_r.shape[-1]
     J = info_r.shape[1]
     w = cp.Variable(N)
@@ -143,12 +144,17 @@ def round_weights(weights: np.ndarray, count: int, overlap: np.ndarray | None = 
     return np.array(chosen)
 
 
-def _evaluate(criterion, base, cand: np.ndarray, sensors: int, chunk: int = 256) -> np.ndarray:
+def _evaluate(criterion, base, cand: np.ndarray, sensors: int, chunk: int = 32, tick=None) -> np.ndarray:
+    """Criterion values of ``base`` plus each candidate ``cand``, ``chunk`` at a time (a chunk's
+    dense sums are ``chunk J 2 d^2`` numbers: 25 MB at 32 on the default membrane);
+    ``tick(fraction)`` after each chunk."""
     out = np.empty(cand.size)
     for a in range(0, cand.size, chunk):
         idx = cand[a : a + chunk]
         sums = base[None] + criterion.info[idx] if base is not None else criterion.info[idx]
         out[a : a + chunk] = criterion.values(sums, sensors)
+        if tick is not None:
+            tick(min(a + chunk, cand.size) / cand.size)
     return out
 
 
@@ -161,8 +167,10 @@ def _allowed(N: int, others: list[int], overlap: np.ndarray | None) -> np.ndarra
     return np.flatnonzero(ok)
 
 
-def greedy(criterion, count: int, overlap: np.ndarray | None = None) -> tuple[np.ndarray, list[float]]:
-    """Add the candidate that lowers the criterion most, ``count`` times; returns layout and path."""
+def greedy(criterion, count: int, overlap: np.ndarray | None = None, tick=None) -> tuple[np.ndarray, list[float]]:
+    """Add the candidate that lowers the criterion most, ``count`` times; returns layout and path.
+
+    ``tick(fraction)``: called as the work goes (the fraction of it done)."""
     N = criterion.count
     if not 1 <= count <= N:
         raise InputError(f"count = {count!r}: expected 1..{N} (the number of candidates)")
@@ -173,7 +181,8 @@ def greedy(criterion, count: int, overlap: np.ndarray | None = None) -> tuple[np
         cand = _allowed(N, chosen, overlap)
         if cand.size == 0:
             raise InputError(f"count = {count}: only {k} non-overlapping candidates")
-        vals = _evaluate(criterion, base, cand, k + 1)
+        step = None if tick is None else (lambda f, k=k: tick((k + f) / count))
+        vals = _evaluate(criterion, base, cand, k + 1, tick=step)
         i = int(cand[np.argmin(vals)])
         chosen.append(i)
         path.append(float(vals.min()))
@@ -182,15 +191,17 @@ def greedy(criterion, count: int, overlap: np.ndarray | None = None) -> tuple[np
 
 
 def swap_improve(
-    criterion, layout, overlap: np.ndarray | None = None, max_passes: int = 20, rtol: float = 1e-9
+    criterion, layout, overlap: np.ndarray | None = None, max_passes: int = 20, rtol: float = 1e-9, tick=None
 ) -> tuple[np.ndarray, list[float]]:
-    """Best-improvement 1-swaps until none helps; returns the layout and the (decreasing) values."""
+    """Best-improvement 1-swaps until none helps; returns the layout and the (decreasing) values.
+
+    ``tick(passes)``: called as the work goes, with the passes done so far (a float)."""
     layout = [int(i) for i in layout]
     K = len(layout)
     total = criterion.info[layout].sum(axis=0)
     current = float(criterion.values(total[None], K)[0])
     path = [current]
-    for _ in range(max_passes):
+    for npass in range(max_passes):
         improved = False
         for k in range(K):
             others = layout[:k] + layout[k + 1 :]
@@ -202,7 +213,8 @@ def swap_improve(
                 cand = cand[cand != layout[k]]
             if cand.size == 0:
                 continue
-            vals = _evaluate(criterion, base, cand, K)
+            step = None if tick is None else (lambda f, k=k, p=npass: tick(p + (k + f) / K))
+            vals = _evaluate(criterion, base, cand, K, tick=step)
             j = int(np.argmin(vals))
             if vals[j] < current - rtol * abs(current):
                 layout[k] = int(cand[j])

@@ -10,15 +10,18 @@ with every output checked before the design starts: what the command calls.
 from __future__ import annotations
 
 import logging
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
 from wingopt.design import DesignResult, DesignSettings, InformationSettings, design_sensors, predicted_error_field
+from wingopt.design.engine import STAGES
 from wingopt.design.rerank import MonteCarloSettings, adopt, rerank
 from wingopt.errors import InputError
 from wingopt.plots.design import plot_layout
 from wingopt.problem import load_problem, read_problem_table
 from wingopt.problem.toml_text import problem_text, sensors_text
+from wingopt.progress import Stages
 from wingopt.results import (
     ResultDirectory,
     check_new_file,
@@ -27,7 +30,15 @@ from wingopt.results import (
     write_text_atomic,
 )
 
-__all__ = ["DesignRun", "design_settings", "design_layout", "write_design_outputs", "run_design", "sensors_header"]
+__all__ = [
+    "DesignRun",
+    "DesignProgress",
+    "design_settings",
+    "design_layout",
+    "write_design_outputs",
+    "run_design",
+    "sensors_header",
+]
 
 log = logging.getLogger(__name__)
 
@@ -41,6 +52,74 @@ class DesignRun:
     sensors_toml: str
     problem_file: Path | None = None
     backup: Path | None = None
+
+
+class DesignProgress(Stages):
+    """The stage lines of a design (``wingopt.progress``): one as each stage of
+    :data:`wingopt.design.engine.STAGES` starts, then one at least every ``interval`` s within it
+    (from a timer thread too, ``heartbeat``, for a stage that is one long call: the relaxation's
+    solver), each with the elapsed time and an estimate of the rest (the stages' relative costs,
+    measured on the default membrane, scaled by the time taken so far). Pass it as ``progress``;
+    :meth:`finish` (or :meth:`stop`) ends the timer."""
+
+    COSTS = {"model": 5.0, "information": 35.0, "criteria": 5.0, "relaxation": 6.0, "greedy": 20.0, "swaps": 100.0}
+    LABELS = {
+        "model": "modes and candidate matrices",
+        "information": "information of every candidate",
+        "criteria": "criteria",
+        "relaxation": "convex relaxation",
+        "greedy": "greedy starts",
+        "swaps": "swaps",
+    }
+
+    def __init__(self, what: str, interval: float = 5.0, heartbeat: bool = True, **kw) -> None:
+        self.fraction = 0.0
+        self.interval = float(interval)
+        self.last = None
+        self._lock = threading.RLock()
+        self._stop = threading.Event()
+        super().__init__([self.COSTS[n] for n in STAGES], what, **kw)
+        if heartbeat and self.enabled:
+            threading.Thread(target=self._beat, name="design-progress", daemon=True).start()
+
+    def _say(self, line: str) -> None:
+        with self._lock:
+            self.last = self.clock()
+            super()._say(line)
+
+    def _done_cost(self) -> float:
+        done = sum(self.costs[: max(self.index - 1, 0)])
+        return done + (self.fraction * self.costs[self.index - 1] if self.index else 0.0)
+
+    def _line(self) -> None:
+        stage = STAGES[self.index - 1]
+        done = f"{100 * self.fraction:.0f} %" if self.fraction > 0 else "running"
+        self._say(f"[{self.index}/{len(self.costs)}] {self.LABELS[stage]}, {done} ({self._when()})")
+
+    def _beat(self) -> None:
+        while not self._stop.wait(min(self.interval, 1.0)):
+            with self._lock:
+                if self.index and not self._stop.is_set() and self.clock() - self.last >= self.interval:
+                    self._line()
+
+    def __call__(self, stage: str, fraction: float) -> None:
+        k = STAGES.index(stage) + 1
+        with self._lock:
+            self.fraction = min(max(float(fraction), 0.0), 1.0)
+            if k != self.index:
+                self.index = k - 1
+                self.start(self.LABELS[stage])
+            elif self.clock() - self.last >= self.interval:
+                self._line()
+
+    def stop(self) -> None:
+        """End the timer thread (no more lines)."""
+        self._stop.set()
+
+    def finish(self) -> float:
+        self.stop()
+        with self._lock:
+            return super().finish()
 
 
 def design_settings(
@@ -59,12 +138,15 @@ def design_settings(
     )
 
 
-def design_layout(problem, count: int, candidates=None, settings: DesignSettings | None = None, montecarlo: int = 0):
+def design_layout(
+    problem, count: int, candidates=None, settings: DesignSettings | None = None, montecarlo: int = 0, progress=None
+):
     """Design ``count`` sensors for ``problem`` (a problem file, a built-in name or a loaded problem).
 
     ``montecarlo = N > 0`` re-ranks the design's ``N`` best layouts by the estimator's mean error on
     the nominal loads (``risk`` only; :mod:`wingopt.design.rerank`), at the settings' noise and
-    record length.
+    record length. ``progress``: ``True`` for the stage lines (:class:`DesignProgress`), or a
+    ``progress(stage, fraction)`` callable, or ``None`` (quiet).
     """
     from wingopt.resources import check_count
 
@@ -77,7 +159,15 @@ def design_layout(problem, count: int, candidates=None, settings: DesignSettings
     prob = load_problem(problem) if isinstance(problem, (str, Path)) else problem
     if prob.kind != "membrane":
         raise InputError(f"problem = {str(problem)!r}: design-sensors needs a membrane problem, got {prob.kind!r}")
-    result = design_sensors(prob, count, candidates, s)
+    if progress is True:
+        progress = DesignProgress(f"{count} sensors, criterion {s.criterion}")
+    try:
+        result = design_sensors(prob, count, candidates, s, progress=progress)
+    finally:
+        if isinstance(progress, DesignProgress):
+            progress.stop()
+    if isinstance(progress, DesignProgress):
+        progress.finish()
     if montecarlo:
         mcs = MonteCarloSettings(
             shortlist=montecarlo, noise_fraction=s.information.noise_fraction, t_end=s.information.t_end
@@ -147,20 +237,22 @@ def run_design(
     plots: bool = True,
     write_problem: str | Path | None = None,
     force: bool = False,
+    progress=True,
     **options,
 ) -> DesignRun:
     """:func:`design_layout` then :func:`write_design_outputs`, both outputs checked first.
 
     ``problem`` is a problem file or built-in name (the source of ``write_problem``) or a loaded
     problem; ``options`` are those of :func:`design_settings`; ``force`` lets ``write_problem``
-    replace an existing file (kept as ``NAME.bak``).
+    replace an existing file (kept as ``NAME.bak``); ``progress`` as in :func:`design_layout`
+    (default the stage lines, shown where ``wingopt.progress`` logs at INFO: the command line).
     """
     inputs = _inputs(problem)
     check_writable(out, inputs=[*inputs, ("--write-problem", write_problem)])
     settings = design_settings(**options)
     if write_problem is not None:
         check_new_file(write_problem, "write-problem", force=force, inputs=inputs)
-    result = design_layout(problem, count, candidates, settings, montecarlo)
+    result = design_layout(problem, count, candidates, settings, montecarlo, progress=progress)
     source = problem if isinstance(problem, (str, Path)) else None
     return write_design_outputs(result, out, plots=plots, write_problem=write_problem, source=source, force=force)
 
