@@ -162,3 +162,16 @@ def test_identify_dic_refusals(tmp_path, capsys):
     assert main([*base, "--dic", str(tmp_path / "none.npz")]) == 2
     assert "none.npz: no such file" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+
+
+def test_a_widened_virtual_sensor_band_is_warned():
+    """The stand-in's DIC virtual sensors misfit the load prior's mean (chi-square ~3 per sensor): the
+    band is widened by the Birge factor, and the run says so (it came back with no warning)."""
+    import wingopt as wo
+
+    frames = Path(__file__).parents[1] / "examples" / "data" / "tunnel_dic_300Hz.npz"
+    run = wo.identify("membrane", dic=frames, method="batch")
+    widen = run.result.info["adequacy"]["band_widening"]
+    assert widen > 1.5
+    said = [w for w in run.warnings if "the band is widened" in w]
+    assert len(said) == 1 and f"x{widen:.2f}" in said[0]

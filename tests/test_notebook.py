@@ -230,7 +230,7 @@ def test_cli_identify_prints_each_warning_once_with_its_source(tmp_path, ramp):
         assert both.count(w) == 1, (w, both)
     lines = [ln for ln in proc.stderr.splitlines() if ": warning: " in ln]
     assert len(lines) == 3 and all(ln.startswith("wingopt identify: warning: [") for ln in lines), lines
-    assert "3 warning(s)" in proc.stdout and " [misfit], " in proc.stdout  # the status on the result line
+    assert "(3 warnings above;" in proc.stdout and " [misfit], " in proc.stdout  # the status on the result line
 
 
 def test_the_cross_checks_warnings_say_they_are_its(monkeypatch, tmp_path, capsys, ramp):

@@ -254,6 +254,11 @@ def _warnings(best: Solution, sols: list[Solution], w: np.ndarray, scr, problem)
             f"the load prior cannot make the sensors' mean (chi-square {best.static_chi2:.1f} per sensor): the load is "
             "the nearest one it allows"
         )
+    elif misfit_scale(best.static_chi2) > 1.05:  # a widened band is said, as every widening is (docs/dic.md)
+        out.append(
+            f"the sensors' mean misfits the load prior (chi-square {best.static_chi2:.2f} per sensor): the band is "
+            f"widened x{misfit_scale(best.static_chi2):.2f} for it"
+        )
     if best.spectral_chi2 > ADEQUATE[1]:
         out.append(
             f"the model spectrum does not fit the record's (residual mean square {best.spectral_chi2:.2f}, expected 1)"
