@@ -202,7 +202,8 @@ def test_command_line_parses(where, source, args):
 def _options(p) -> set[str]:
     import argparse
 
-    return {s for a in p._actions if a.help != argparse.SUPPRESS for s in a.option_strings}
+    # an advanced option (--help-all shows it, wingopt.cli.helptext.advanced) is an option all the same
+    return {s for a in p._actions if a.help != argparse.SUPPRESS or hasattr(a, "full_help") for s in a.option_strings}
 
 
 def _subcommands() -> dict:
