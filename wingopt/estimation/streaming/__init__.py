@@ -3,8 +3,9 @@
 :mod:`~.types` (settings, the per-sample estimate), :mod:`~.rows` (the window's linearised rows and
 incremental normal equations), :mod:`~.estimator` (:class:`StreamingEstimator`, ``push(t, y)``, the
 linear membrane); :mod:`~.nonlinear` (:class:`NonlinearStreamingEstimator`, the same shape on the
-Berger membrane: an extended Kalman filter with :mod:`~.berger_step`, :mod:`~.nonlinear_start`,
-:mod:`~.running_noise`).
+Berger or FvK membrane: an extended Kalman filter on the forward-model layer's one-sample map, with
+:mod:`~.nonlinear_start`, :mod:`~.running_noise`, :mod:`~.recovery` (numerical failures recovered)
+and :mod:`~.batch_check` (the batch fit's frame check in the band)).
 """
 
 from wingopt.estimation.result import Estimate
