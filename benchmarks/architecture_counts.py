@@ -26,9 +26,9 @@ from __future__ import annotations
 
 import argparse
 import ast
+import importlib.util
 import json
 import re
-import sys
 from collections import defaultdict
 from pathlib import Path
 
@@ -165,36 +165,13 @@ def _imports(path: Path, modules: set[str]) -> set[str]:
 
 
 def import_cycles(files: list[Path]) -> list[list[str]]:
+    """Strongly connected components of the import graph, type-only imports included (the
+    architecture test's Tarjan search, ``tests/test_architecture._cycles``, on this fuller graph)."""
+    spec = importlib.util.spec_from_file_location("test_architecture", ROOT.parent / "tests" / "test_architecture.py")
+    arch = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(arch)
     modules = {_module(p) for p in files}
-    graph = {_module(p): _imports(p, modules) for p in files}
-    index, low, stack, on, out = {}, {}, [], set(), []
-
-    def visit(v: str) -> None:
-        index[v] = low[v] = len(index)
-        stack.append(v)
-        on.add(v)
-        for w in graph.get(v, ()):
-            if w not in index:
-                visit(w)
-                low[v] = min(low[v], low[w])
-            elif w in on:
-                low[v] = min(low[v], index[w])
-        if low[v] == index[v]:
-            comp = []
-            while True:
-                w = stack.pop()
-                on.discard(w)
-                comp.append(w)
-                if w == v:
-                    break
-            if len(comp) > 1:
-                out.append(sorted(comp))
-
-    sys.setrecursionlimit(10000)
-    for v in sorted(graph):
-        if v not in index:
-            visit(v)
-    return out
+    return arch._cycles({_module(p): _imports(p, modules) for p in files})
 
 
 def lines(files: list[Path], under: str | None = None) -> int:

@@ -36,7 +36,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from wingopt.control.kalman import SteadyStateKalman
-from wingopt.control.mpc_assembly import _difference_rows, _Quadratic, condense
+from wingopt.control.mpc_assembly import _difference_rows, _Quadratic, condense, dynamics_rows
 from wingopt.control.mpc_problem import TrackingProblem
 from wingopt.errors import InputError
 from wingopt.optim.qp import ParametricQP
@@ -177,9 +177,7 @@ def assemble_offset_free_qp(problem: TrackingProblem, horizon: int, formulation:
     H, Qp, Cpp = Hz[:nv, :nv], Hz[:nv, nv:], Hz[nv:, nv:]
 
     F, G = problem.F, problem.G
-    I_N = sp.identity(N, format="csc")
-    shift = sp.diags([np.ones(N - 1)], [-1], shape=(N, N), format="csc")
-    A_dyn = sp.hstack([-sp.kron(I_N, G), sp.kron(I_N, sp.identity(nx)) - sp.kron(shift, F)], format="csc")
+    A_dyn = dynamics_rows(F, G, N)
     B_dyn = np.zeros((nX, npar))
     B_dyn[:nx, :nx] = F
     B_dyn[:, nx + m : nx + 2 * m] = np.tile(G, (N, 1))

@@ -60,6 +60,15 @@ def _difference_rows(N: int, m: int) -> sp.csc_matrix:
     return sp.kron(D.tocsr()[1:], sp.identity(m), format="csc")
 
 
+def dynamics_rows(F: np.ndarray, G: np.ndarray, N: int) -> sp.csc_matrix:
+    """The rows ``x_{k+1} - F x_k - G w_k`` of an ``N``-step horizon in the unknowns ``(w, x)``
+    (``x_0``'s term, from the parameters, is the caller's)."""
+    nx = F.shape[0]
+    I_N = sp.identity(N, format="csc")
+    shift = sp.diags([np.ones(N - 1)], [-1], shape=(N, N), format="csc")
+    return sp.hstack([-sp.kron(I_N, G), sp.kron(I_N, sp.identity(nx)) - sp.kron(shift, F)], format="csc")
+
+
 def assemble_qp(problem: TrackingProblem, horizon: int, formulation: str = "condensed") -> ParametricQP:
     """The horizon-``N`` QP of ``problem`` with parameter ``p = (x_0, w_prev)``.
 
@@ -93,9 +102,7 @@ def assemble_qp(problem: TrackingProblem, horizon: int, formulation: str = "cond
     # -- constraints ------------------------------------------------------------------------------
     # Dynamics  x_{k+1} - F x_k - G w_k = 0  (x_0 from p).
     F, G = problem.F, problem.G
-    I_N = sp.identity(N, format="csc")
-    shift = sp.diags([np.ones(N - 1)], [-1], shape=(N, N), format="csc")
-    A_dyn = sp.hstack([-sp.kron(I_N, G), sp.kron(I_N, sp.identity(nx)) - sp.kron(shift, F)], format="csc")
+    A_dyn = dynamics_rows(F, G, N)
     B_dyn = sp.vstack([sp.hstack([sp.csc_matrix(F), sp.csc_matrix((nx, m))]), sp.csc_matrix((nX - nx, npar))])
     eq_A, eq_b0, eq_Bp = [A_dyn], [np.zeros(nX)], [B_dyn]
     if problem.settings.terminal == "static":
