@@ -1,4 +1,6 @@
-"""Small DIC frames from closed-form fields (no simulation), shared by the DIC tests."""
+"""Small DIC frames from closed-form fields (no simulation) and a calibrated prior, shared by the DIC tests."""
+
+import dataclasses
 
 import numpy as np
 
@@ -21,3 +23,16 @@ def analytic_frames(n_frames: int = 6, grid=(12, 6), missing: float = 0.0, seed:
     exx, eyy, exy = 0.5 * wx**2 + 1e-4, 0.5 * wy**2 - 1e-4, 0.5 * wx * wy
     valid = np.random.default_rng(seed).random(w.shape) >= missing
     return DICFrames(x, y, t, u, v, w, exx, eyy, exy, valid, source="analytic")
+
+
+def calibrated(problem, e0, offset=(1.024, 0.991), rel=(0.040, 0.037), corr=-0.95):
+    """The problem with a calibration's posterior as its [identification] prior: prestrains ``offset``
+    off the truth ``e0`` with relative stds ``rel`` and correlation ``corr`` (a ringing record's)."""
+    ident = dataclasses.replace(
+        problem.identification,
+        prestrain=(e0[0] * offset[0], e0[1] * offset[1]),
+        prestrain_std=(rel[0] * e0[0], rel[1] * e0[1]),
+        prestrain_correlation=corr,
+        calibration="test",
+    )
+    return dataclasses.replace(problem, identification=ident)

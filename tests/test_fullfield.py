@@ -18,6 +18,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from _dic import calibrated
 
 from wingopt.errors import InputError
 from wingopt.estimation.fullfield import FullFieldSettings, fullfield_identify
@@ -28,18 +29,6 @@ from wingopt.membrane.full import FvKMembrane
 from wingopt.workflows.studies import load_field
 
 CASES = [("tunnel-LE", (0.06, 0.04)), ("tunnel-LE", (0.04, 0.06)), ("tunnel-bump", (0.06, 0.04))]
-
-
-def calibrated(problem, e0, offset=(1.024, 0.991), rel=(0.040, 0.037), corr=-0.95):
-    """The problem with a calibration's posterior as [identification] prior (module docstring)."""
-    ident = dataclasses.replace(
-        problem.identification,
-        prestrain=(e0[0] * offset[0], e0[1] * offset[1]),
-        prestrain_std=(rel[0] * e0[0], rel[1] * e0[1]),
-        prestrain_correlation=corr,
-        calibration="test",
-    )
-    return dataclasses.replace(problem, identification=ident)
 
 
 @pytest.fixture(scope="module")

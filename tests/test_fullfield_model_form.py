@@ -12,10 +12,9 @@ the held-out fits the evidence does not exclude, without moving the lift. A load
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
+from _dic import calibrated
 
 from wingopt.estimation.fullfield import FullFieldSettings, fullfield_identify
 from wingopt.estimation.fullfield.estimator import ADEQUATE_CHI2
@@ -27,18 +26,6 @@ from wingopt.membrane.full import FvKMembrane
 from wingopt.workflows.studies import load_field
 
 E0 = (0.06, 0.04)
-
-
-def calibrated(problem, e0, offset=(1.024, 0.991), rel=(0.040, 0.037), corr=-0.95):
-    """The problem with a calibration's posterior as prior (``tests/test_fullfield.py``'s offsets and spread)."""
-    ident = dataclasses.replace(
-        problem.identification,
-        prestrain=(e0[0] * offset[0], e0[1] * offset[1]),
-        prestrain_std=(rel[0] * e0[0], rel[1] * e0[1]),
-        prestrain_correlation=corr,
-        calibration="test",
-    )
-    return dataclasses.replace(problem, identification=ident)
 
 
 def sharp_le(W: float, H: float) -> PressureLoad:
