@@ -221,7 +221,8 @@ def _check_report(path: Path, expect: list[str]) -> _Page:
         assert e in text, e
     chromium = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
     if chromium:
-        shot = path.with_suffix(".png")
+        # the screenshot goes beside the results folder, never into it: the tests count its figures
+        shot = path.parent.with_name(f"{path.parent.name}_report_screenshot.png")
         subprocess.run(
             [chromium, "--headless", "--disable-gpu", "--no-sandbox", f"--screenshot={shot}", path.as_uri()],
             check=True, timeout=60, capture_output=True,
