@@ -30,8 +30,8 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np  # noqa: E402
 
 from wingopt.estimation.mhe import mhe_identify  # noqa: E402
-from wingopt.estimation.realistic import RealisticSettings, realistic_identify  # noqa: E402
-from wingopt.estimation.realistic import estimator as est_mod  # noqa: E402
+from wingopt.estimation.records import RecordSettings, identify_record  # noqa: E402
+from wingopt.estimation.transient import estimator as est_mod  # noqa: E402
 from wingopt.membrane import MembraneModel  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
 from wingopt.workflows.protocols import simulate_case  # noqa: E402
@@ -42,8 +42,8 @@ TRUTH_SUBSTEPS = {"fvk": 2, "berger": 8}
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--modes", type=int, default=RealisticSettings().modes)
-    ap.add_argument("--substeps", type=int, default=RealisticSettings().substeps)
+    ap.add_argument("--modes", type=int, default=RecordSettings().modes)
+    ap.add_argument("--substeps", type=int, default=RecordSettings().substeps)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--load", default="L1")
     ap.add_argument("--truth", choices=("fvk", "berger"), default="fvk")
@@ -52,7 +52,7 @@ def main(argv=None) -> None:
         "--record",
         choices=("transient", "auto", "steady"),
         default="transient",
-        help="RealisticSettings.record (default transient: the whole-record fit timed here; 'auto' now sends "
+        help="RecordSettings.record (default transient: the whole-record fit timed here; 'auto' now sends "
         "this bubble-start FvK record to the steady estimator, which has no LM problem to time)",
     )
     a = ap.parse_args(argv)
@@ -60,7 +60,7 @@ def main(argv=None) -> None:
     model = MembraneModel.from_problem(problem)
     case = simulate_case(problem, a.load, 0.01, 0, truth=a.truth, substeps=TRUTH_SUBSTEPS[a.truth], tell_noise=False)
     meas = dataclasses.replace(case.measurements, noise_std=None)  # the noise level is estimated
-    s = RealisticSettings(modes=a.modes, substeps=a.substeps, membrane_model=a.membrane_model, record=a.record)
+    s = RecordSettings(modes=a.modes, substeps=a.substeps, membrane_model=a.membrane_model, record=a.record)
     captured = {}
     orig = est_mod.levenberg_marquardt
 
@@ -70,12 +70,12 @@ def main(argv=None) -> None:
 
     est_mod.levenberg_marquardt = spy
     c0 = time.process_time()
-    realistic_identify(model, meas, s)
+    identify_record(model, meas, s)
     first = time.process_time() - c0
     cpu, wall = [], []
     for _ in range(a.repeat):
         c0, w0 = time.process_time(), time.perf_counter()
-        res = realistic_identify(model, meas, s)
+        res = identify_record(model, meas, s)
         cpu.append(time.process_time() - c0)
         wall.append(time.perf_counter() - w0)
     est_mod.levenberg_marquardt = orig

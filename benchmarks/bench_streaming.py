@@ -9,7 +9,7 @@ the membrane is in equilibrium after ~1 s). ``--model nonlinear``: the same with
 (:func:`~wingopt.workflows.protocols.simulate_case` with ``truth="berger"``: the full-order Berger
 membrane on 49x25, 8 sub-steps, L1, 1 %; before the model-layer refactor a 120-mode modal Berger
 truth) through :class:`~wingopt.estimation.streaming.nonlinear.NonlinearStreamingEstimator`, against
-the batch realistic estimator (:func:`~wingopt.estimation.realistic.realistic_identify`, defaults).
+the batch realistic estimator (:func:`~wingopt.estimation.records.identify_record`, defaults).
 ``--model fvk``: the FvK truth (``simulate_case(..., truth="fvk")``, 49x25, 2 sub-steps, L1, 1 %)
 through the FvK stream (``NonlinearStreamSettings(membrane_model="fvk")``, the ``--follow`` default),
 against the batch FvK estimator.
@@ -48,7 +48,7 @@ import time  # noqa: E402
 import numpy as np  # noqa: E402
 
 from wingopt.estimation.mhe import mhe_identify  # noqa: E402
-from wingopt.estimation.realistic import RealisticSettings, realistic_identify  # noqa: E402
+from wingopt.estimation.records import RecordSettings, identify_record  # noqa: E402
 from wingopt.estimation.streaming import StreamingEstimator, StreamSettings  # noqa: E402
 from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator, NonlinearStreamSettings  # noqa: E402
 from wingopt.membrane import MembraneModel  # noqa: E402
@@ -97,11 +97,7 @@ def main() -> None:
     meas = dataclasses.replace(case.measurements, noise_std=None)  # the estimators are not told the noise
     dt = float(meas.t[1] - meas.t[0])
     t0 = time.process_time()
-    batch = (
-        realistic_identify(model, meas, RealisticSettings(membrane_model=mm))
-        if nonlinear
-        else mhe_identify(model, meas)
-    )
+    batch = identify_record(model, meas, RecordSettings(membrane_model=mm)) if nonlinear else mhe_identify(model, meas)
     batch_cpu = time.process_time() - t0
 
     if nonlinear:

@@ -33,7 +33,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from wingopt.estimation.realistic import RealisticSettings, realistic_identify  # noqa: E402
+from wingopt.estimation.records import RecordSettings, identify_record  # noqa: E402
 from wingopt.measurements import Measurements, read_measurements  # noqa: E402
 from wingopt.membrane import MembraneModel  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
@@ -64,14 +64,14 @@ def main(argv=None) -> int:
     part = Measurements(full.t[:n], full.values[:n], full.sensor_names, None, "bench")
     truth = _truth()
     aero = problem.with_identification(pressure_prior="aerodynamic", leading_edge="x0")
-    steady = RealisticSettings(membrane_model="fvk")
+    steady = RecordSettings(membrane_model="fvk")
     rows = []
 
     def run(label, prob, meas, settings, repeat):
         model = MembraneModel.from_problem(prob)
         times = []
         for _ in range(repeat):
-            cpu, res = _cpu(lambda: realistic_identify(model, meas, settings))
+            cpu, res = _cpu(lambda: identify_record(model, meas, settings))
             times.append(cpu)
         lift, std = res.reported_lift
         rows.append((label, meas.count, times[0], min(times[1:] or times), lift, std))
@@ -84,7 +84,7 @@ def main(argv=None) -> int:
     run("steady, aerodynamic prior", aero, part, steady, 1 + args.repeat)
     run("steady (default), whole record", problem, full, steady, 1 + args.repeat)
     if not args.no_transient:
-        old = run("transient route (before)", problem, part, RealisticSettings(membrane_model="fvk",
+        old = run("transient route (before)", problem, part, RecordSettings(membrane_model="fvk",
                   record="transient"), 1)  # fmt: skip
         print(f"ratio transient / steady (warm), {part.count} samples: {old[2] / default[3]:.0f}x")
     per = default[3] / args.seconds

@@ -5,7 +5,7 @@ Truth: the full-order FvK membrane on 49x25 (the estimator's mesh is 25x13), pre
 level estimated from the data; nothing is tuned on these records' loads. Two tables:
 
 * ``gust``: L1 with a 1-cos gust on the release transient (three times and sizes), the batch route
-  (``realistic_identify``, ``record="auto"``): route, lift error, band, lift-history RMS error
+  (``identify_record``, ``record="auto"``): route, lift error, band, lift-history RMS error
   (of the steady lift), and whether one and two BLAS threads give the same answer (1e-6);
 * ``stream``: the FvK EKF stream (``wingopt identify --data -``'s estimator) on L1, L2, L3, LE
   and an off-centre bump, the initial shape declared (the file's 1 cm bubble) or not: samples
@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from wingopt.estimation.options import IdentifyOptions
-from wingopt.estimation.realistic import RealisticSettings, realistic_identify
+from wingopt.estimation.records import RecordSettings, identify_record
 from wingopt.estimation.registry import resolve
 from wingopt.estimation.runners import build
 from wingopt.measurements import Measurements
@@ -67,7 +67,7 @@ def gust_table(cache: Path | None) -> None:
         t0 = time.perf_counter()
         for threads in (1, 2):
             with threadpool_limits(limits=threads, user_api="blas"):
-                res.append(realistic_identify(model, meas, RealisticSettings(membrane_model="fvk")))
+                res.append(identify_record(model, meas, RecordSettings(membrane_model="fvk")))
         r, true = res[0], float(d["true"])
         same = np.allclose(res[1].lift, r.lift, rtol=1e-6) and np.allclose(res[1].lift_std, r.lift_std, rtol=1e-6)
         rms = np.sqrt(np.mean((r.lift - d["lift"]) ** 2)) / true

@@ -112,7 +112,7 @@ def _model():
 
 def run_task(task: dict) -> dict:
     """Run one task; returns the task with its metrics."""
-    from wingopt.estimation.realistic import realistic_identify
+    from wingopt.estimation.records import identify_record
 
     clean = _clean(task["load"], task["truth"], task["prestrain_factor"], task["damping"])
     noisy, _ = add_noise(clean.trajectory.outputs, task["noise"], task["seed"])
@@ -120,7 +120,7 @@ def run_task(task: dict) -> dict:
     model = _model()
     t0, c0 = time.perf_counter(), time.process_time()
     if task["estimator"] == "realistic":
-        res = realistic_identify(model, meas)
+        res = identify_record(model, meas)
     else:
         # the MHE's adequacy check without the FvK cross-check (the study measures the linear estimate)
         res = run_record(resolve(task["estimator"], "linear"), model, meas, IdentifyOptions(model_form=False))

@@ -35,7 +35,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from wingopt.estimation.realistic import RealisticSettings, realistic_identify  # noqa: E402
+from wingopt.estimation.records import RecordSettings, identify_record  # noqa: E402
 from wingopt.estimation.registry import resolve  # noqa: E402
 from wingopt.estimation.runners import (
     run_record,  # noqa: E402
@@ -84,7 +84,7 @@ def run(load, truth, pf, damping, noise, seed, estimator, settings, model) -> di
     meas = dataclasses.replace(rec.measurements, values=noisy, noise_std=None)
     c0 = time.process_time()
     if estimator == "realistic":
-        res = realistic_identify(model, meas, settings)
+        res = identify_record(model, meas, settings)
     else:  # as `wingopt identify --model linear`: the MHE's check and model-form term, or the tuned JEKF
         res = run_record(resolve(estimator, "linear"), model, meas)
     cpu = time.process_time() - c0
@@ -148,9 +148,7 @@ def main(argv=None) -> None:
     a = ap.parse_args(argv)
     seeds = [int(x) for x in a.seeds.split(",")] if "-" not in a.seeds else list(range(*map(int, a.seeds.split("-"))))
     model = MembraneModel.from_problem(load_problem("membrane"))
-    settings = RealisticSettings(
-        membrane_model=a.membrane_model, cubic_modes=a.cubic_modes, stretch_gain=a.stretch_gain
-    )
+    settings = RecordSettings(membrane_model=a.membrane_model, cubic_modes=a.cubic_modes, stretch_gain=a.stretch_gain)
     SPLIT["unequal"] = not a.isotropic
     rows = []
     grid = itertools.product(

@@ -30,7 +30,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from wingopt.estimation.realistic import RealisticSettings  # noqa: E402
+from wingopt.estimation.records import RecordSettings  # noqa: E402
 from wingopt.membrane import Gust, PressureLoad, load_case  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
 from wingopt.workflows.identify import identify  # noqa: E402
@@ -77,7 +77,7 @@ def run(name: str, spec: dict, problem, seed: int, max_iter: int | None = None) 
     k = int(np.searchsorted(t, skip - 1e-12))
     data = np.column_stack([t[k:] - t[k], values[k:]])
     c0 = time.process_time()
-    settings = None if max_iter is None else RealisticSettings(max_iter=max_iter)
+    settings = None if max_iter is None else RecordSettings(max_iter=max_iter)
     out = identify(problem, data=data, settings=settings)
     cpu = time.process_time() - c0
     res = out.result

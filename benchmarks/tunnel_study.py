@@ -6,7 +6,7 @@ sensor outputs at 300 Hz (``.npz`` with ``t``, ``outputs``, ``params`` = [e0x, e
 ``lift_mean``; names ``LOAD_e<ex>_<ey>_d<damping>_o<order>_fc<corner>_r<rms>_s<seed>_n<frames>.npz``).
 The study adds 2 % noise (of each sensor's peak, seed 100 + buffeting seed) and drops 1 % of the
 frames, keeps the first ``--frames`` frames, and runs the steady estimator
-(:func:`~wingopt.estimation.realistic.steady_estimator.steady_identify`, what ``wingopt identify``
+(:func:`~wingopt.estimation.steady.estimator.steady_identify`, what ``wingopt identify``
 runs on a steady record) with ``[identification] pressure_prior = --prior`` (``auto``: a load that
 may act up to the frame; ``aerodynamic``: thin-airfoil shapes, leading edge ``x1`` for ``TE``
 records, ``x0`` otherwise) and the problem file's prior (prestrain 0.05 ± 20 %, damping factor 1).
@@ -32,8 +32,8 @@ import time
 
 import numpy as np
 
-from wingopt.estimation.realistic.settings import RealisticSettings
-from wingopt.estimation.realistic.steady_estimator import steady_identify
+from wingopt.estimation.core.record_settings import RecordSettings
+from wingopt.estimation.steady.estimator import steady_identify
 from wingopt.measurements import Measurements
 from wingopt.membrane import MembraneModel, add_noise
 from wingopt.problem import load_problem
@@ -86,7 +86,7 @@ def one(base, path: str, frames: int, prior: str, bin_hz: float, calibration: fl
         )
     model = dataclasses.replace(base, problem=dataclasses.replace(base.problem, identification=ident))
     t0 = time.process_time()
-    res = steady_identify(model, meas, RealisticSettings(membrane_model="fvk", spectrum_bin_hz=bin_hz))
+    res = steady_identify(model, meas, RecordSettings(membrane_model="fvk", spectrum_bin_hz=bin_hz))
     cpu = time.process_time() - t0
     info, tension = res.info, res.info["tension"]
     lift, lift_std = res.reported_lift
@@ -163,7 +163,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", nargs="*", type=int, default=[0, 1, 2, 3, 4])
     ap.add_argument("--frames", nargs="*", type=int, default=[450, 1400])
     ap.add_argument("--prior", default="auto", choices=("auto", "frame", "aerodynamic", "interior"))
-    ap.add_argument("--bin-hz", type=float, default=RealisticSettings.spectrum_bin_hz, help="spectral bin width (Hz)")
+    ap.add_argument("--bin-hz", type=float, default=RecordSettings.spectrum_bin_hz, help="spectral bin width (Hz)")
     ap.add_argument("--calibration", type=float, help="a calibrated prior this far off the truth (relative)")
     ap.add_argument("--out", help="append one JSON line per fit")
     ap.add_argument("--table", help="only print the table of a JSON-lines file")

@@ -14,9 +14,9 @@ import pytest
 import scipy.signal as sig
 
 from wingopt.errors import InputError, ProblemFileError
-from wingopt.estimation.realistic.buffeting import BuffetingProblem
-from wingopt.estimation.realistic.spectra import spectral_data, with_acquisition
-from wingopt.estimation.realistic.steady_estimator import steady_identify
+from wingopt.estimation.steady.buffeting import BuffetingProblem
+from wingopt.estimation.steady.estimator import steady_identify
+from wingopt.estimation.steady.spectra import spectral_data, with_acquisition
 from wingopt.measurements import Measurements, read_measurements
 from wingopt.measurements.acquisition import Acquisition
 from wingopt.membrane import MembraneModel
@@ -141,9 +141,9 @@ def test_the_model_spectrum_carries_the_filter_power(standin):
     """Without aliases, the Whittle model of a filtered record is the point-sampled one times
     ``|H(f)|^2``, signal and noise floor alike (the noise comes before the filter); a digital filter's
     aliases carry nothing in its passband; the bins stop at the fit band."""
-    from wingopt.estimation.realistic.load_model import LoadShapes
-    from wingopt.estimation.realistic.record_problem import ParameterPrior
-    from wingopt.estimation.realistic.steady import SteadyProblem, steady_data
+    from wingopt.estimation.core.load_model import LoadShapes
+    from wingopt.estimation.core.record_problem import ParameterPrior
+    from wingopt.estimation.steady.problem import SteadyProblem, steady_data
 
     problem, meas = standin
     model = MembraneModel.from_problem(problem)

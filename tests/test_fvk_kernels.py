@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from wingopt.estimation.realistic.solver import levenberg_marquardt
+from wingopt.estimation.core.record_fit import levenberg_marquardt
 from wingopt.membrane import MembraneModel, bubble, load_case
 from wingopt.membrane.modal import BergerModal, FvKModal
 from wingopt.membrane.modal import kernels as fvk_kernels

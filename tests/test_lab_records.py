@@ -14,11 +14,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from wingopt.estimation.realistic import RealisticSettings, realistic_identify
-from wingopt.estimation.realistic.load_model import GustAmplitude, LoadShapes
-from wingopt.estimation.realistic.record_problem import ParameterPrior, RecordProblem
-from wingopt.estimation.realistic.start import SCAN_S, short_start
-from wingopt.estimation.realistic.steady_estimator import is_steady, mean_moves
+from wingopt.estimation.core.load_model import GustAmplitude, LoadShapes
+from wingopt.estimation.core.record_problem import ParameterPrior, RecordProblem
+from wingopt.estimation.core.start import SCAN_S, short_start
+from wingopt.estimation.records import RecordSettings, identify_record
+from wingopt.estimation.steady.estimator import is_steady, mean_moves
 from wingopt.membrane import MembraneModel, add_noise, bubble, load_case
 from wingopt.membrane.loads import Gust
 from wingopt.membrane.modal.berger import BergerModal
@@ -126,11 +126,11 @@ def test_must_show_gust_after_the_release(model, gust):
 
     rec = simulate_case(model.problem, "L1", 0.01, 0, (49, 25), 1.0, gust=gust, **TRUTH)
     assert not is_steady(rec.measurements.values)
-    s = RealisticSettings(membrane_model="fvk")
+    s = RecordSettings(membrane_model="fvk")
     out = []
     for threads in (1, 2):
         with threadpool_limits(limits=threads, user_api="blas"):
-            out.append(realistic_identify(model, rec.measurements, s))
+            out.append(identify_record(model, rec.measurements, s))
     res = out[0]
     true = rec.true_lift
     assert res.method == "realistic" and res.info["load_model"] == "gust"
@@ -184,8 +184,8 @@ def test_logger_stamps_read_as_the_uniform_clock_with_the_same_answer(model, tmp
     logged, report = read_measurements(path, names)
     assert report.as_dict()["clock"]["max_deviation_steps"] < 0.05
     assert np.abs(logged.t - exact.t).max() < 1e-5 and np.array_equal(logged.values, exact.values, equal_nan=True)
-    s = RealisticSettings(membrane_model="fvk")
-    a, b = realistic_identify(model, exact, s), realistic_identify(model, logged, s)
+    s = RecordSettings(membrane_model="fvk")
+    a, b = identify_record(model, exact, s), identify_record(model, logged, s)
     assert b.reported_lift[0] == pytest.approx(a.reported_lift[0], rel=1e-4)
     assert b.reported_lift[1] == pytest.approx(a.reported_lift[1], rel=1e-3)
 

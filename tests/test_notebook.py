@@ -16,8 +16,8 @@ from _ramp_record import write_record
 
 import wingopt as wo
 from wingopt.dynamics.statespace import StateSpace
+from wingopt.estimation.calibration.fit import Calibration
 from wingopt.estimation.options import IdentifyOptions
-from wingopt.estimation.realistic.calibration import Calibration
 from wingopt.estimation.result import IdentificationResult
 from wingopt.membrane import MembraneModel
 from wingopt.status import RunStatus, from_info, from_solver_statuses, worst
@@ -244,7 +244,7 @@ def test_the_cross_checks_warnings_say_they_are_its(monkeypatch, tmp_path, capsy
         res = IdentificationResult("batch", t, np.zeros((1, 1)), np.zeros((1, model.n)), np.array([0.4]))
         return IdentificationResult(**{**res.__dict__, "lift_std": np.array([0.01]), "info": {"warnings": ["stub"]}})
 
-    monkeypatch.setattr(runners, "realistic_identify", stub)
+    monkeypatch.setattr(runners, "identify_record", stub)
     out = tmp_path / "run"
     args = ["identify", "membrane", "--data", str(ramp), "--model", "linear", "--mesh", "13x7", "--no-plots"]
     assert main([*args, "--out", str(out)]) == 0

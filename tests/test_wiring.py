@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from wingopt.estimation.realistic.record_problem import ParameterPrior
-from wingopt.estimation.realistic.settings import RealisticSettings
-from wingopt.estimation.realistic.steady_estimator import steady_identify
+from wingopt.estimation.core.record_problem import ParameterPrior
+from wingopt.estimation.core.record_settings import RecordSettings
+from wingopt.estimation.steady.estimator import steady_identify
 from wingopt.estimation.wiring import check_steady, check_transient
 from wingopt.measurements import Measurements, read_measurements
 from wingopt.membrane import (
@@ -28,7 +28,7 @@ from wingopt.membrane import (
 from wingopt.problem import load_problem
 
 ROOT = Path(__file__).resolve().parents[1]
-S = RealisticSettings(membrane_model="fvk")
+S = RecordSettings(membrane_model="fvk")
 
 
 @pytest.fixture(scope="module")

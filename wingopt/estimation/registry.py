@@ -28,11 +28,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from wingopt.errors import InputError
+from wingopt.estimation.core.record_settings import RecordSettings
 from wingopt.estimation.fullfield.settings import FullFieldSettings
 from wingopt.estimation.jekf.settings import JEKFSettings
 from wingopt.estimation.mhe.settings import MHESettings
 from wingopt.estimation.options import OPTION_FLAGS, IdentifyOptions, declared_options
-from wingopt.estimation.realistic.settings import RealisticSettings
 from wingopt.estimation.streaming.types import NonlinearStreamSettings, StreamSettings
 
 __all__ = [
@@ -132,8 +132,8 @@ REGISTRY: dict[tuple[str, str, bool], EstimatorSpec] = {
         # the seed's filter: R = 1e-4 as the seed set it, so a noise level is not one of its options
         EstimatorSpec("jekf-seed", "linear", False, JEKFSettings, "the seed's joint EKF", frozenset()),
         EstimatorSpec("jekf-tuned", "linear", False, JEKFSettings, "joint EKF, lambda from the data"),
-        EstimatorSpec("batch", "berger", False, RealisticSettings, "whole-record fit, Berger"),
-        EstimatorSpec("batch", "fvk", False, RealisticSettings, "whole-record fit, FvK membrane"),
+        EstimatorSpec("batch", "berger", False, RecordSettings, "whole-record fit, Berger"),
+        EstimatorSpec("batch", "fvk", False, RecordSettings, "whole-record fit, FvK membrane"),
         EstimatorSpec(
             "mhe",
             "linear",
@@ -158,7 +158,7 @@ def resolve(
 
     ``simulated``: the truth physics of a simulated record (``None`` for measured data). ``auto``
     picks the estimator that is right on a real membrane for measured data and for simulated
-    nonlinear truth (the FvK membrane, measured in docs/estimation_realistic.md), the seed's
+    nonlinear truth (the FvK membrane, measured in docs/estimation_records.md), the seed's
     linear MHE on the seed's simulated linear protocol, and matches a given membrane. ``frames``:
     the data are DIC frames: ``auto`` is the full-field estimator (another method gets the
     frames' virtual sensors); a frame estimator without frames is refused.

@@ -21,10 +21,10 @@ from wingopt.estimation import jekf
 from wingopt.estimation.fullfield import fullfield_identify
 from wingopt.estimation.lambda_rules import resolve as resolve_rule
 from wingopt.estimation.mhe import mhe_identify
+from wingopt.estimation.mhe.model_check import check_mhe_result
 from wingopt.estimation.options import IdentifyOptions, apply_options
 from wingopt.estimation.protocol import Estimator, RecordEstimator, StreamEstimator
-from wingopt.estimation.realistic import RealisticSettings, realistic_identify
-from wingopt.estimation.realistic.mhe_check import check_mhe_result
+from wingopt.estimation.records import RecordSettings, identify_record
 from wingopt.estimation.registry import EstimatorSpec, check_options, resolve
 from wingopt.estimation.result import IdentificationResult
 from wingopt.estimation.streaming import StreamingEstimator
@@ -77,7 +77,7 @@ def _mhe(spec, model, meas, options, settings, truth, frames) -> IdentificationR
 
 
 def _batch(spec, model, meas, options, settings, truth, frames) -> IdentificationResult:
-    return realistic_identify(model, meas, settings_for(spec, options, settings), initial_load=options.initial_load)
+    return identify_record(model, meas, settings_for(spec, options, settings), initial_load=options.initial_load)
 
 
 def _fullfield(spec, model, meas, options, settings, truth, frames) -> IdentificationResult:
@@ -123,7 +123,7 @@ def run_record(
 
     ``truth`` (a simulated record) is handed only to ``jekf-seed``, which tunes its lambda on the
     noise-free truth as the seed did; ``settings`` replaces the default settings the options start
-    from (the row's settings dataclass: an :class:`MHESettings`, a :class:`RealisticSettings` or a
+    from (the row's settings dataclass: an :class:`MHESettings`, a :class:`RecordSettings` or a
     :class:`FullFieldSettings`); ``frames`` (:class:`~wingopt.measurements.dic.DICFrames`) are the
     full-field estimator's data.
     """
@@ -198,7 +198,7 @@ def model_form_band(model: MembraneModel, meas: Measurements, result: Identifica
     1-sigma band, is a model-form uncertainty: added in quadrature, the band reaches the far side of
     the alternative's band (``info["model_form"]``). The estimate is unchanged.
     """
-    alt = realistic_identify(model, meas, RealisticSettings(membrane_model="fvk"), initial_load=initial_load)
+    alt = identify_record(model, meas, RecordSettings(membrane_model="fvk"), initial_load=initial_load)
     alt_lift, alt_sd = alt.reported_lift
     diff = float(result.lift[-1] - alt_lift)
     alt_std = 0.0 if alt_sd is None else alt_sd

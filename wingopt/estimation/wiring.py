@@ -39,10 +39,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from wingopt.errors import InputError, SolverError
-from wingopt.estimation.realistic.load_model import LoadShapes
-from wingopt.estimation.realistic.record_problem import ParameterPrior
-from wingopt.estimation.realistic.solver import levenberg_marquardt
-from wingopt.estimation.realistic.steady import SteadyData, SteadyProblem, starts, steady_data
+from wingopt.estimation.core.load_model import LoadShapes
+from wingopt.estimation.core.record_fit import levenberg_marquardt
+from wingopt.estimation.core.record_problem import ParameterPrior
+from wingopt.estimation.steady.problem import SteadyData, SteadyProblem, starts, steady_data
 from wingopt.membrane.model import MembraneModel
 
 __all__ = ["Finding", "WiringReport", "check_steady", "check_transient", "attach", "fluctuation_slopes", "EVIDENCE"]

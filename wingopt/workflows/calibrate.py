@@ -2,7 +2,7 @@
 the prestrains and damping with their posterior out, and a problem file that carries them.
 
 :func:`calibrate_membrane` reads the problem and the calibration record (a release, a pluck or a
-tap with no flow), runs :func:`wingopt.estimation.realistic.calibration.calibrate`;
+tap with no flow), runs :func:`wingopt.estimation.calibration.fit.calibrate`;
 :func:`write_calibration_outputs` hands the result to :mod:`wingopt.results`: ``summary.json`` (with
 its provenance), the figures, ``report.html`` and,
 with ``write_problem``, the problem file with ``[identification] prestrain, prestrain_std,
@@ -22,7 +22,7 @@ from typing import Any
 
 from wingopt import resources
 from wingopt.errors import InputError
-from wingopt.estimation.realistic.calibration import Calibration, calibrate
+from wingopt.estimation.calibration.fit import Calibration, calibrate
 from wingopt.estimation.sanity import as_measurements
 from wingopt.measurements import Measurements, read_measurements
 from wingopt.membrane import MembraneModel

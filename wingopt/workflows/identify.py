@@ -220,7 +220,7 @@ def identify(
     max_memory : float, optional
         Refuse (``InputError``, before any work) a run estimated to need more bytes than this
         (default: the memory the machine has available); see :mod:`wingopt.resources`.
-    settings : MHESettings or RealisticSettings, optional
+    settings : MHESettings or RecordSettings, optional
         Advanced: the estimator's settings to start from (the options are applied on top).
     initial_load, noise_std, lam :
         Shorthands for the same fields of ``options``: the sign prior (Pa), the sensor noise std

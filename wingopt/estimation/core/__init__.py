@@ -1,7 +1,17 @@
-"""What every estimator shares, whatever its record or model: today the one nonlinear least-squares
-solver (:mod:`.least_squares`, Levenberg–Marquardt) that the moving-horizon windows and the record
-fits (transient, steady, calibration) all run through their own thin adapters (their problem,
-their step, their stopping rule)."""
+"""What every estimator shares, whatever its record or model.
+
+* :mod:`.least_squares` — the one nonlinear least-squares solver (Levenberg–Marquardt) that the
+  moving-horizon windows and the record fits (transient, steady, calibration) all run through
+  their own thin adapters (their problem, their step, their stopping rule);
+* :mod:`.load_model` — the load shapes and their smoothness prior, with a gust-following amplitude;
+* :mod:`.record_problem`, :mod:`.record_fit` — a record's unknowns, priors, residuals and Jacobian,
+  and its adapter to the solver (budget, fit);
+* :mod:`.record_settings` — the settings of the record fits;
+* :mod:`.start` — the record fits' start-up (modal model, initial state prior, amplitude scan);
+* :mod:`.adequacy` — chi-square per datum and per segment, the flag and the band factor;
+* :mod:`.prior_check`, :mod:`.frame_check` — the evidence between load priors;
+* :mod:`.model_form` — the modal FvK model's prestrain model-form term.
+"""
 
 from wingopt.estimation.core.least_squares import (
     Damping,

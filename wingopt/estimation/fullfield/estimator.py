@@ -27,6 +27,8 @@ import time
 
 import numpy as np
 
+from wingopt.estimation.core.load_model import LoadShapes
+from wingopt.estimation.core.record_problem import ParameterPrior
 from wingopt.estimation.fullfield.data import field_data, inplane_check
 from wingopt.estimation.fullfield.frames import frame_loads
 from wingopt.estimation.fullfield.model_form import model_form
@@ -35,8 +37,6 @@ from wingopt.estimation.fullfield.settings import FullFieldSettings
 from wingopt.estimation.fullfield.steady import PrestrainPrior, SteadyFit, fit_prior
 from wingopt.estimation.fullfield.system import PressureFromShape
 from wingopt.estimation.fullfield.tension import MIN_FLUCTUATION, DynamicTension, dynamic_tension, fluctuation
-from wingopt.estimation.realistic.load_model import LoadShapes
-from wingopt.estimation.realistic.record_problem import ParameterPrior
 from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements.dic import DICFrames
 from wingopt.membrane.forward import full_model

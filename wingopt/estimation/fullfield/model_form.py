@@ -23,7 +23,7 @@ An alternative is not excluded when its chi-square per datum is at most :data:`A
 chosen fit's (the evidence cannot weigh spaces that all misfit: their chi-squares differ by
 thousands). The largest distance of an admitted alternative's lift from the reported lift is the
 model-form spread, added to the band in quadrature, with a warning and ``info["model_form"]``; the
-reported lift does not move (the pattern of :mod:`wingopt.estimation.realistic.frame_check`).
+reported lift does not move (the pattern of :mod:`wingopt.estimation.core.frame_check`).
 """
 
 from __future__ import annotations
@@ -33,10 +33,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wingopt.estimation.core.load_model import LoadShapes
 from wingopt.estimation.fullfield.steady import SteadyFit
 from wingopt.estimation.fullfield.system import PressureFromShape, posterior
 from wingopt.estimation.load_space import build_load_space
-from wingopt.estimation.realistic.load_model import LoadShapes
 from wingopt.membrane.model import MembraneModel
 
 __all__ = ["ModelForm", "model_form", "RICHER", "LOOSER", "ADMITS", "SPLIT_SEED"]

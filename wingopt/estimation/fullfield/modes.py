@@ -13,7 +13,7 @@ and says whether it is enough:
 2. the frames' fits projected on the first two (mass-orthonormal), each history's periodogram
    fitted by Whittle's likelihood with a damped oscillator driven by a low-pass forcing,
    ``S(f) = A |H(f)|^2 (1 + (f/fc)^2)^-n + N`` (frequency, damping, level, corner, order and noise
-   free; the corner's and order's priors :mod:`wingopt.estimation.realistic.buffeting`'s); the
+   free; the corner's and order's priors :mod:`wingopt.estimation.steady.buffeting`'s); the
    frequency's std from the Laplace approximation;
 3. the model's sensitivity ``d f / d e0`` about the same mean shape, and the prestrains' covariance
    that the two measured frequencies alone would give (a model-form floor of
@@ -38,7 +38,7 @@ from scipy.optimize import minimize
 from wingopt.estimation.fullfield.data import FieldData
 from wingopt.estimation.fullfield.steady import _hessian
 from wingopt.estimation.fullfield.system import PressureFromShape
-from wingopt.estimation.realistic.buffeting import FC_REF, NUISANCE, ORDER_REF
+from wingopt.estimation.steady.buffeting import FC_REF, NUISANCE, ORDER_REF
 
 __all__ = ["ModalCheck", "modal_check", "FREQUENCY_MODEL_FORM_REL", "IDENTIFIED_REL", "MIN_SAMPLES"]
 
@@ -177,7 +177,7 @@ def _spectrum(q: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
 
 def _oscillator(f: np.ndarray, p: np.ndarray) -> np.ndarray:
     """``A |H|^2 (1 + (f/fc)^2)^-n + N``, ``p = log(f0, zeta, A, fc, n, N)``; ``H`` per unit ``omega0^2``
-    (the forcing's low-pass spectrum as :mod:`wingopt.estimation.realistic.buffeting`'s)."""
+    (the forcing's low-pass spectrum as :mod:`wingopt.estimation.steady.buffeting`'s)."""
     f0, z, A, fc, order, N = np.exp(p)
     r = f / f0
     return A / ((1 - r**2) ** 2 + (2 * z * r) ** 2) * (1 + (f / fc) ** 2) ** -order + N

@@ -23,9 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
+from wingopt.estimation.core.load_model import LoadShapes
+from wingopt.estimation.core.record_problem import ParameterPrior
 from wingopt.estimation.fullfield.system import Posterior, PressureFromShape, posterior
-from wingopt.estimation.realistic.load_model import LoadShapes
-from wingopt.estimation.realistic.record_problem import ParameterPrior
 
 __all__ = ["PrestrainPrior", "SteadyFit", "fit_prior", "STEP"]
 

@@ -27,12 +27,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
+from wingopt.estimation.core.load_model import LoadShapes
+from wingopt.estimation.core.model_form import PRESTRAIN_MODEL_FORM_REL
 from wingopt.estimation.fullfield.data import FieldData
 from wingopt.estimation.fullfield.frames import _derivatives
 from wingopt.estimation.fullfield.steady import STEP, PrestrainPrior, _hessian
 from wingopt.estimation.fullfield.system import PressureFromShape, posterior
-from wingopt.estimation.realistic.load_model import LoadShapes
-from wingopt.estimation.realistic.model_form import PRESTRAIN_MODEL_FORM_REL
 from wingopt.membrane.parameters import MembraneParameters
 
 __all__ = ["DynamicTension", "dynamic_tension", "fluctuation", "MIN_FLUCTUATION", "MAX_CHI2", "MIN_FRAMES"]

@@ -2,7 +2,7 @@
 
 A filter's band is its prior's: the load shapes it streams (the interior prior) and the
 linearisation at its own path. The batch route weighs the frame prior against the interior one
-(:mod:`wingopt.estimation.realistic.frame_check`) and widens its band by the lift the two priors
+(:mod:`wingopt.estimation.core.frame_check`) and widens its band by the lift the two priors
 give (``info["frame_check"]["lift_spread"]``); the stream did not (L3 on FvK truth: the stream
 ended 6.8 of its bands off). At the first look that finds a stream transient
 (:class:`~.steady_refit.SteadyRefit`) the record so far is fitted once by the batch route, and:

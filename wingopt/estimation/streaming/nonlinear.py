@@ -2,7 +2,7 @@
 
 :class:`NonlinearStreamingEstimator` has the shape of
 :class:`~wingopt.estimation.streaming.StreamingEstimator` (``push(t, y) -> Estimate``) on the
-realistic estimator's model (:mod:`wingopt.estimation.realistic`): the modal Berger membrane or,
+realistic estimator's model (:mod:`wingopt.estimation.records`): the modal Berger membrane or,
 with ``membrane_model="fvk"``, the cubic modal FvK membrane of the batch default
 (:class:`~wingopt.membrane.modal.sample.ModalSample`); 48 modes of the 25x13 mesh, all
 dynamic, predictor-corrector tension, sub-steps of at most 0.5 ms; the 15 smoothest load shapes
@@ -61,12 +61,12 @@ import numpy as np
 from scipy.linalg import lapack
 
 from wingopt.errors import InputError
+from wingopt.estimation.core.load_model import LoadShapes
+from wingopt.estimation.core.model_form import prestrain_std_with_model_form
+from wingopt.estimation.core.record_problem import PARAMETERS, ParameterPrior
 from wingopt.estimation.distributions import chi2_isf
 from wingopt.estimation.mhe.consistency import SIGNIFICANCE
 from wingopt.estimation.noise import MHE_NOISE, resolve_noise_std
-from wingopt.estimation.realistic.load_model import LoadShapes
-from wingopt.estimation.realistic.model_form import prestrain_std_with_model_form
-from wingopt.estimation.realistic.record_problem import PARAMETERS, ParameterPrior
 from wingopt.estimation.result import Estimate
 from wingopt.estimation.streaming.nonlinear_start import TOLERANCE, batch_start
 from wingopt.estimation.streaming.recovery import Recovery, healthy

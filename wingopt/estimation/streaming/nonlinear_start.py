@@ -3,8 +3,8 @@
 The filter's weak point is its start: the prior is far from the answer and the first samples (the
 ringing bubble) carry most of what identifies the tension, so linearising at a poor estimate
 there biases everything after. The start-up therefore solves the realistic estimator's problem
-(:class:`~wingopt.estimation.realistic.record_problem.RecordProblem`, Levenberg–Marquardt,
-:func:`~wingopt.estimation.realistic.solver.levenberg_marquardt`) on the buffered samples, from the
+(:class:`~wingopt.estimation.core.record_problem.RecordProblem`, Levenberg–Marquardt,
+:func:`~wingopt.estimation.core.record_fit.levenberg_marquardt`) on the buffered samples, from the
 provisional filter's load and parameters, and converts its answer into the filter's mean and
 covariance at the last buffered sample: the state is propagated from the fitted initial state
 with the exact tangent of the unknowns (``G``, ``P = G Sigma G^T``, ``Sigma`` the fit's posterior
@@ -18,14 +18,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from wingopt.estimation.realistic.record_problem import RecordProblem
-from wingopt.estimation.realistic.solver import levenberg_marquardt
-from wingopt.estimation.realistic.start import scan
+from wingopt.estimation.core.record_fit import levenberg_marquardt
+from wingopt.estimation.core.record_problem import RecordProblem
+from wingopt.estimation.core.start import scan
 
 __all__ = ["batch_start", "TOLERANCE"]
 
 TOLERANCE = 0.15
-"""The batch's adequacy tolerance on the chi-square per datum (:mod:`wingopt.estimation.realistic.adequacy`)."""
+"""The batch's adequacy tolerance on the chi-square per datum (:mod:`wingopt.estimation.core.adequacy`)."""
 
 START_DECREMENT = 0.1
 """Newton decrement at which the start-up solve stops: within ~0.3 posterior sigma of the optimum of

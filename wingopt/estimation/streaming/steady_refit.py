@@ -6,7 +6,7 @@ about ``(p/T)^2``; measured on the shipped stand-in, the FvK EKF ends at 1.27 ±
 truth is 1.76 N). :class:`SteadyRefit` wraps the live filter: every sample goes through it, and the
 record so far is kept (bounded); each time the record has grown by half since the last look (at
 least ``every_s`` of data, at most ``max_interval_s``), it is tested for steadiness
-(:func:`~wingopt.estimation.realistic.steady_estimator.is_steady`) and, if steady, refitted by the
+(:func:`~wingopt.estimation.steady.estimator.is_steady`) and, if steady, refitted by the
 whole-record estimator, whose steady lift the rows then carry (phase ``steady``). :meth:`finish`
 refits the whole record once more, so the stream's final answer is the batch estimate of the same
 samples. A record found not steady at a look (a release rings at its start) is a transient record
@@ -26,8 +26,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from wingopt.estimation.realistic.steady_estimator import is_steady
 from wingopt.estimation.result import Estimate, IdentificationResult
+from wingopt.estimation.steady.estimator import is_steady
 from wingopt.estimation.streaming.batch_check import MAX_CHECK_SAMPLES, BatchCheck
 from wingopt.measurements import Measurements
 

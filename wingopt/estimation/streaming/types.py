@@ -72,7 +72,7 @@ class NonlinearStreamSettings:
     Attributes
     ----------
     modes, shapes, state_modes, substeps, substep_s, kappa, prior_power :
-        As :class:`~wingopt.estimation.realistic.RealisticSettings` (all modes dynamic).
+        As :class:`~wingopt.estimation.records.RecordSettings` (all modes dynamic).
     free : tuple of str or None
         Free parameters (some of ``prestrain_x, prestrain_y, damping``); ``None``: the problem file's.
     tracking_substeps : int
@@ -82,7 +82,7 @@ class NonlinearStreamSettings:
         predictor-corrector step per sample loses nothing measurable (L1 protocol: final lift
         within 2e-6 of the 2-sub-step filter) at about half the work; in a fast transient (a
         gust, the provisional phase) its error is 2.3e-2 of the peak output instead of 6.1e-3
-        (docs/estimation_realistic.md).
+        (docs/estimation_records.md).
     load_walk : float
         Random walk of the load coefficients, in prior stds per sqrt(s) (default 0: a constant
         load, as the batch; measured: 0.002 makes the lift drift -1.2 % per minute of steady
