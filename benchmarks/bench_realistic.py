@@ -31,7 +31,7 @@ import numpy as np  # noqa: E402
 
 from wingopt.estimation.mhe import mhe_identify  # noqa: E402
 from wingopt.estimation.records import RecordSettings, identify_record  # noqa: E402
-from wingopt.estimation.transient import estimator as est_mod  # noqa: E402
+from wingopt.estimation.transient import run as est_mod  # noqa: E402
 from wingopt.membrane import MembraneModel  # noqa: E402
 from wingopt.problem import load_problem  # noqa: E402
 from wingopt.workflows.protocols import simulate_case  # noqa: E402

@@ -29,9 +29,9 @@ import numpy as np
 import scipy.stats as st
 
 from wingopt.design import DesignSettings, InformationSettings
-from wingopt.design.candidates import parse_candidates
+from wingopt.design.candidates import parse_candidates, with_problem_sensors
 from wingopt.design.criteria import LinearCriterion
-from wingopt.design.engine import _with_problem_sensors, nominal_loads
+from wingopt.design.engine import nominal_loads
 from wingopt.design.information import ModalSensitivity
 from wingopt.design.montecarlo import IdentifyTask, run_task
 from wingopt.design.priors import gp_prior, smooth_loads
@@ -50,7 +50,7 @@ BROAD_LOADS = "smooth:8:0:0.1,smooth:8:1:0.1"
 def criteria(problem, spec: str, info: InformationSettings):
     """Candidates and the linearised criteria (risk, A, D) of ``design_sensors``' defaults, no selection."""
     s = DesignSettings(information=info)
-    cands, default_idx = _with_problem_sensors(problem, parse_candidates(spec, problem, info.sub))
+    cands, default_idx = with_problem_sensors(problem, parse_candidates(spec, problem, info.sub))
     model = MembraneModel.from_problem(problem.with_sensors(()))
     sens = ModalSensitivity.from_model(model, info)
     chat = sens.modal_matrices(cands.rects)

@@ -266,3 +266,12 @@ def test_bad_measurements_are_rejected(coarse, l1_case):
     ekf.setup(measurement_variance=1e-8)
     with pytest.raises(InputError, match="y: shape"):
         ekf.step(np.zeros(3))
+
+
+def test_the_filter_reads_the_declaration_its_settings_carry(coarse):
+    ekf = JointEKF(coarse, JEKFSettings.tuned())
+    assert ekf.settings.declaration == coarse.problem.identification  # filled from the problem
+    assert ekf.dt == coarse.problem.identification.dt
+    own = dataclasses.replace(coarse.problem.identification, dt=2e-3, initial_deflection=-0.004)
+    ekf = JointEKF(coarse, JEKFSettings.tuned(declaration=own))
+    assert ekf.dt == 2e-3 and ekf.prior.initial_peak == -0.004

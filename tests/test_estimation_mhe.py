@@ -13,9 +13,9 @@ import scipy.sparse as sp
 from wingopt.errors import InputError, SolverError
 from wingopt.estimation.load_space import build_load_space, edge_mass
 from wingopt.estimation.mhe import MHESettings, MovingHorizonEstimator, mhe_identify
+from wingopt.estimation.mhe.cold_start import sign_score
 from wingopt.estimation.mhe.model import MHEModel
 from wingopt.estimation.mhe.solvers import make_solver
-from wingopt.estimation.mhe.start import sign_score
 from wingopt.estimation.noise import estimate_noise_std
 from wingopt.estimation.regularization import (
     LambdaPoint,
@@ -245,6 +245,17 @@ def test_sign_follows_the_prior(small_model, small_case):
     assert neg.current_lift == pytest.approx(-pos.current_lift, rel=1e-3)
     assert neg._sol.cost == pytest.approx(pos._sol.cost, rel=1e-6)
     assert sign_score(neg.reduced, neg._sol.theta, neg.sign_prior) > 1.5
+
+
+def test_the_sign_prior_is_the_declaration_the_settings_carry(small_model, small_case):
+    s = MHESettings(window=100, stride=100, modes=20, regularization=1e-6)
+    pos = MovingHorizonEstimator(small_model, s).setup(small_case.measurements)
+    assert pos.settings.declaration == small_model.problem.identification  # filled from the problem
+    # A declaration given by the caller is the one read: its prior load and bubble flip the sign.
+    own = dataclasses.replace(small_model.problem.identification, initial_load=-200.0, initial_deflection=-0.01)
+    neg = MovingHorizonEstimator(small_model, s.replace(declaration=own)).setup(small_case.measurements)
+    assert (neg.initial_load, neg.initial_deflection) == (-200.0, -0.01)
+    assert neg.current_lift == pytest.approx(-pos.current_lift, rel=1e-3)
 
 
 def test_start_from_rest_without_deflection_prior(small_model, small_problem):

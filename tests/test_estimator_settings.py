@@ -67,6 +67,19 @@ def test_the_rows_membrane_and_a_base_are_kept():
     assert stream.mhe.window == 80 and stream.mhe.modes == 10
 
 
+def test_the_builder_fills_the_problems_declaration_and_keeps_a_given_one(membrane_problem):
+    declared = membrane_problem.identification
+    assert settings_for(resolve("mhe")).declaration is None  # no problem given: nothing to fill
+    for spec in REGISTRY.values():
+        settings = settings_for(spec, problem=membrane_problem)
+        if any(f.name == "declaration" for f in dataclasses.fields(settings)):
+            assert settings.declaration == declared, spec.label
+    own = dataclasses.replace(declared, dt=2e-3)
+    base = MHESettings(declaration=own)
+    kept = settings_for(resolve("mhe"), IdentifyOptions(modes=12), base, problem=membrane_problem)
+    assert kept == MHESettings(modes=12, declaration=own)
+
+
 def test_nested_settings_take_only_the_options_they_name():
     @dataclasses.dataclass(frozen=True)
     class Inner:

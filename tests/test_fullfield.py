@@ -182,9 +182,13 @@ def test_calibration_prior_on_the_standin(standin, membrane_problem):
     0.04561 ± 0.00170, r = -0.95) the prestrains are the calibration's and the lift +0.46 % ± 0.56 %."""
     frames, truth = standin
     ident = dataclasses.replace(
-        membrane_problem.identification, prestrain=(0.057325, 0.0456053), prestrain_std=(0.002259, 0.0017009),
-        prestrain_correlation=-0.9469, damping=1.03513, damping_std=0.02017,
-    )  # fmt: skip
+        membrane_problem.identification,
+        prestrain=(0.057325, 0.0456053),
+        prestrain_std=(0.002259, 0.0017009),
+        prestrain_correlation=-0.9469,
+        damping=1.03513,
+        damping_std=0.02017,
+    )
     model = MembraneModel.from_problem(dataclasses.replace(membrane_problem, identification=ident))
     res = fullfield_identify(model, frames)
     info, lift = res.info, truth["truth_lift"]

@@ -353,7 +353,7 @@ def test_no_runtime_warnings_on_stderr(tmp_path):
 
 def test_report_shows_warnings():
     from wingopt.results.report import Report
-    from wingopt.workflows.demo import _warnings
+    from wingopt.workflows.demo_report import _warnings
 
     summary = {"identify": {"L1": {"mhe": {"warnings": ["sensors bunched: x"]}, "jekf": {"warnings": []}}}}
     items = _warnings(summary)

@@ -88,9 +88,9 @@ def _gust_problem(model, seconds=0.7):
     t = np.arange(n) * 1e-3
     prior = ParameterPrior((0.05, 0.05), ("prestrain_x", "prestrain_y", "damping"))
     x_mean = np.concatenate([Q[0], np.zeros(bm.m)])
-    rp = RecordProblem(bm, LoadShapes.build(model, 6), t, bm.outputs(Q), np.full(4, 1e-4), prior, x_mean,
-                       np.abs(x_mean) + 1e-5, GustAmplitude(knot_s=0.01), True, 6)  # fmt: skip
-    return rp
+    shapes, gust = LoadShapes.build(model, 6), GustAmplitude(knot_s=0.01)
+    x_std = np.abs(x_mean) + 1e-5
+    return RecordProblem(bm, shapes, t, bm.outputs(Q), np.full(4, 1e-4), prior, x_mean, x_std, gust, True, 6)
 
 
 def test_short_start_of_a_gust_problem_keeps_the_whole_records_unknowns(model):

@@ -62,9 +62,14 @@ def test_a_calibrated_tension_gives_the_lift(problem, prestrain, calibrated, dec
     the frame prior and the aerodynamic shapes at either edge; under the frame prior alone this
     record read 53 % low, its lobe signs open)."""
     res, true_lift = _identify(
-        problem, "tunnel-LE", prestrain, prestrain=calibrated, prestrain_std=(0.001, 0.001),
-        prestrain_correlation=-0.9, **declared,
-    )  # fmt: skip
+        problem,
+        "tunnel-LE",
+        prestrain,
+        prestrain=calibrated,
+        prestrain_std=(0.001, 0.001),
+        prestrain_correlation=-0.9,
+        **declared,
+    )
     lift = float(res.lift.mean())
     assert abs(lift - true_lift) <= 0.03 * true_lift
     assert abs(lift - true_lift) <= 2.0 * float(res.lift_std.mean())

@@ -106,7 +106,7 @@ def test_the_short_start_brings_a_long_record_near_its_optimum():
     from the scan's point itself."""
     from wingopt.estimation.core.record_fit import cost
     from wingopt.estimation.core.start import scan, short_start
-    from wingopt.estimation.transient import estimator as est
+    from wingopt.estimation.transient import run as est  # where the record's fits call the solver
 
     problem = load_problem("membrane").with_mesh((13, 7))
     model = MembraneModel.from_problem(problem)

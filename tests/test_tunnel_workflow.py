@@ -31,8 +31,8 @@ def calibrated(tmp_path_factory):
     (an output file never goes inside ``--out``, which the run replaces as a whole)."""
     tmp = tmp_path_factory.mktemp("cal")
     out = tmp / "cal"
-    r = _cli("calibrate", "membrane", "--data", str(DATA / "tunnel_calibration_300Hz.csv"), "--out", str(out),
-             "--write-problem", str(tmp / "calibrated.toml"), cwd=tmp)  # fmt: skip
+    record, written = str(DATA / "tunnel_calibration_300Hz.csv"), str(tmp / "calibrated.toml")
+    r = _cli("calibrate", "membrane", "--data", record, "--out", str(out), "--write-problem", written, cwd=tmp)
     assert r.returncode == 0, r.stderr
     assert (out / "calibrated.toml").read_text() == (tmp / "calibrated.toml").read_text()
     return tmp / "calibrated.toml", r.stdout
@@ -59,12 +59,14 @@ def test_the_calibrated_file_with_a_declared_aerodynamic_load_gives_the_lift(cal
     """Calibrated tension + `pressure_prior = 'aerodynamic'`, `leading_edge = 'x0'`: the mean lift of
     the 4.6 s buffeted record within 3 %, inside its band, no tension warning."""
     path, _ = calibrated
-    text = path.read_text().replace("[identification]\n", '[identification]\npressure_prior = "aerodynamic"\n'
-                                    'leading_edge = "x0"\n', 1)  # fmt: skip
+    text = path.read_text().replace(
+        "[identification]\n", '[identification]\npressure_prior = "aerodynamic"\nleading_edge = "x0"\n', 1
+    )
     tunnel = tmp_path / "tunnel.toml"
     tunnel.write_text(text)
-    r = _cli("identify", str(tunnel), "--data", str(DATA / "tunnel_300Hz.csv"), "--out", str(tmp_path / "run"),
-             cwd=tmp_path)  # fmt: skip
+    r = _cli(
+        "identify", str(tunnel), "--data", str(DATA / "tunnel_300Hz.csv"), "--out", str(tmp_path / "run"), cwd=tmp_path
+    )
     assert r.returncode == 0, r.stderr
     lift, band = (float(v) for v in re.search(r"lift ([-\d.]+) N ± ([\d.]+)", r.stdout).groups())
     assert abs(lift - TRUE_LIFT) <= 0.03 * TRUE_LIFT

@@ -51,6 +51,8 @@ __all__ = [
 
 
 _F = 8.0  # bytes per float64
+_JEKF_RUNS = {"jekf-seed": 23}
+"""Filter runs a JEKF's lambda costs (the tuned rule's grid: 20; the seed's Nelder-Mead a few more)."""
 
 
 @dataclass(frozen=True)
@@ -227,7 +229,7 @@ def estimate_identify(
         # The modal filter: O((3r)^2) per sample (block-diagonal transition, rank-2p update), about 20
         # filter runs for lambda (the tuned rule's grid; the seed's Nelder-Mead a few more). Measured on
         # 25x13, 1001 samples, CPU: tuned 2.4 s at 60 modes, 59 s with every mode (325); seed 3.9 s, 67 s.
-        seconds += (23 if method == "jekf-seed" else 20) * 4e-9 * N * (3 * r) ** 2
+        seconds += _JEKF_RUNS.get(method, 20) * 4e-9 * N * (3 * r) ** 2
     where = f"identify on {_mesh(nodes)} ({n} dofs), {N} samples"
     return Estimate(where, BASE_BYTES + sum(terms.values()), seconds, terms, knob)
 
@@ -287,9 +289,12 @@ def estimate_qp(horizon: int, states: int, inputs: int) -> Estimate:
     H = int(horizon)
     terms = {"QP (condensed over the horizon)": _F * (H * states * inputs * 2 + 3 * (inputs * H) ** 2)}
     return Estimate(
-        f"a QP over {H} steps", BASE_BYTES + sum(terms.values()), 1e-9 * (inputs * H) ** 3, terms,
+        f"a QP over {H} steps",
+        BASE_BYTES + sum(terms.values()),
+        1e-9 * (inputs * H) ** 3,
+        terms,
         {"QP (condensed over the horizon)": f"--horizon {H}"},
-    )  # fmt: skip
+    )
 
 
 def estimate_design(
@@ -314,9 +319,12 @@ def estimate_design(
     if montecarlo:
         knobs["montecarlo"] = f"--montecarlo {montecarlo}"
     return Estimate(
-        f"design-sensors on {_mesh(nodes)} ({candidates} candidates)", BASE_BYTES + sum(terms.values()), seconds,
-        terms, knobs,
-    )  # fmt: skip
+        f"design-sensors on {_mesh(nodes)} ({candidates} candidates)",
+        BASE_BYTES + sum(terms.values()),
+        seconds,
+        terms,
+        knobs,
+    )
 
 
 SAFETY = 0.5

@@ -20,8 +20,10 @@ def check_nodes(nodes, name: str = "nodes") -> tuple[int, int]:
     """A mesh ``(nx, ny)``: two whole numbers, at least 4 each (``"13x7"`` text goes through
     :func:`wingopt.problem.parse_mesh`)."""
     if isinstance(nodes, (str, bytes)):
-        raise InputError(f"{name} = {nodes!r}: expected (nx, ny) nodes in x and y, e.g. (25, 13); parse text such "
-                         "as '25x13' with wingopt.parse_mesh")  # fmt: skip
+        raise InputError(
+            f"{name} = {nodes!r}: expected (nx, ny) nodes in x and y, e.g. (25, 13); parse text such "
+            "as '25x13' with wingopt.parse_mesh"
+        )
     try:
         items = list(nodes)
     except TypeError:
@@ -36,8 +38,15 @@ def check_nodes(nodes, name: str = "nodes") -> tuple[int, int]:
     return out[0], out[1]
 
 
-def check_number(name: str, value, *, lo: float | None = None, hi: float | None = None, positive: bool = False,
-                 allow_none: bool = False) -> float | None:  # fmt: skip
+def check_number(
+    name: str,
+    value,
+    *,
+    lo: float | None = None,
+    hi: float | None = None,
+    positive: bool = False,
+    allow_none: bool = False,
+) -> float | None:
     """A finite real number (``positive``: > 0; ``lo`` <= value <= ``hi``); an :class:`InputError` naming ``name``."""
     if value is None and allow_none:
         return None

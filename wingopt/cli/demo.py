@@ -37,7 +37,8 @@ def register(sub, common) -> None:
 
 def run(args) -> int:
     from wingopt import resources
-    from wingopt.workflows.demo import DemoConfig, run_demo, summary_table
+    from wingopt.workflows.demo import DemoConfig, run_demo
+    from wingopt.workflows.demo_report import summary_table
 
     with resources.long_runs(args.force, "--force"):
         summary = run_demo(

@@ -16,7 +16,7 @@ from wingopt.cli import options as opt
 from wingopt.cli.helptext import Formatter, add_help_all, advanced
 from wingopt.cli.options import parse_noise
 from wingopt.errors import InputError
-from wingopt.estimation.registry import METHOD_ALIASES, METHODS, MODEL_ALIASES, MODELS
+from wingopt.estimation.registry import FRAME_METHODS, METHOD_ALIASES, METHODS, MODEL_ALIASES, MODELS
 from wingopt.optim.registry import solver_names
 from wingopt.results import to_jsonable
 from wingopt.workflows.protocols import TRUTHS
@@ -48,6 +48,22 @@ def register(sub, common) -> None:
     )
     add_help_all(p)
     p.add_argument("problem", help="problem file (.toml) or built-in name (membrane)")
+    _add_sources(p)
+    p.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
+    _add_estimator_choice(p)
+    _add_simulation_options(p)
+    _add_estimator_options(p)
+    opt.add(p, "--max-memory")
+    opt.add(p, "--force")
+    opt.add(p, "--no-plots")
+    opt.add(p, "--json")
+    data = opt.add_channel_options(p)
+    follow.add_options(data)
+    p.set_defaults(func=run)
+
+
+def _add_sources(p) -> None:
+    """Where the record comes from: one of a simulated case, a sensor file, a growing CSV, DIC frames."""
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument(
         "--load",
@@ -58,7 +74,10 @@ def register(sub, common) -> None:
     src.add_argument("--data", metavar="FILE.csv", help="sensor record: t, S1, S2, ... ('-': standard input)")
     src.add_argument("--follow", metavar="FILE.csv", help="stream a CSV that grows: one estimate per row")
     src.add_argument("--dic", metavar="DIR|FILE.npz", help="DIC frames (DICe, CSV or NPZ; docs/dic.md)")
-    p.add_argument("--out", required=True, metavar="DIR", help=OUT_HELP)
+
+
+def _add_estimator_choice(p) -> None:
+    """The estimator's mesh, method and membrane (the registry's pair), and the MHE's FvK cross-check."""
     opt.add(p, "--mesh", help="estimator mesh (default: the problem's)")
     opt.add(p, "--method", choices=METHODS + tuple(METHOD_ALIASES), default="auto", help=METHOD_HELP)
     p.add_argument(
@@ -78,7 +97,10 @@ def register(sub, common) -> None:
             "only the misfit, not the model's bias)",
         )
     )
-    # Simulation-only options: unset is None, so that one given with measured data is refused by name.
+
+
+def _add_simulation_options(p) -> None:
+    """The simulated case's options: unset is None, so that one given with measured data is refused by name."""
     t = p.add_argument_group("simulated case (--load only; refused with --data, --dic, --follow)")
     t.add_argument("--noise", dest="noise", metavar="PERCENT", help="noise, %% of each peak (default 1)")
     advanced(t.add_argument("--noise-percent", dest="noise", metavar="PERCENT", help="the same as --noise"))
@@ -93,6 +115,10 @@ def register(sub, common) -> None:
     )
     advanced(t.add_argument("--truth-damping", type=float, metavar="X", help="truth damping factor (default 1)"))
     t.add_argument("--gust", action="store_true", default=None, help="1-cos gust: +60 %% over 0.2 s from 0.4 s")
+
+
+def _add_estimator_options(p) -> None:
+    """The estimators' options (each refused by an estimator that does not use it: the registry's check)."""
     g = p.add_argument_group("estimator options (refused by an estimator that does not use them)")
     opt.add(g, "--solver", choices=solver_names("window"), help="mhe window solver (numpy)", aliases=("--backend",))
     advanced(
@@ -142,13 +168,6 @@ def register(sub, common) -> None:
     )
     advanced(g.add_argument("--initial-load", type=float, metavar="PA", help="sign prior, Pa (default: the problem's)"))
     opt.add(g, "--noise-std")
-    opt.add(p, "--max-memory")
-    opt.add(p, "--force")
-    opt.add(p, "--no-plots")
-    opt.add(p, "--json")
-    data = opt.add_channel_options(p)
-    follow.add_options(data)
-    p.set_defaults(func=run)
 
 
 def identify_options(args):
@@ -307,7 +326,7 @@ def route_words(summary: dict) -> str:
         return method
     est = summary.get("estimator") or {}
     frames = est.get("frames") if isinstance(est.get("frames"), dict) else None
-    if method == "fullfield" and frames:
+    if method in FRAME_METHODS and frames:
         what = f"{route}, {frames.get('used', frames.get('total'))} frames x {frames.get('points')} points"
         if est.get("steady_lift_N") is not None and est["steady_lift_N"] == summary["lift_N"]:
             what += ", steady fit of their mean"

@@ -244,6 +244,47 @@ def simulate_closed_loop(
     -------
     ClosedLoopResult
     """
+    period, dt, sub = _timing(controller, t_end, sensor_noise, plant_dt)
+    target, limits, truth, bias = _checked_setup(model, target, limits, vmin, vmax, plant_model, sensor_bias)
+    m = model.n_inputs
+    n_ctrl = int(np.floor(t_end / period + 1e-9))
+    plant_model = make_plant(truth, dt, plant, plant_band_hz)
+    z0 = np.zeros(model.n) if z0 is None else np.asarray(z0, dtype=float)
+    zdot0 = np.zeros(model.n) if zdot0 is None else np.asarray(zdot0, dtype=float)
+    x = plant_model.initial_state(z0, zdot0)
+    rng = np.random.default_rng(seed)
+    sensors = _Sensors(truth.sensing, None if sensor_bias is None else bias, float(sensor_noise), rng, m)
+    if actuator is not None:
+        actuator.reset()
+    controller.reset(model, target)
+    run = _Run.empty(n_ctrl, sub, model.n, m, acting=actuator is not None)
+    _run(run, controller, plant_model, x, sensors, limits, actuator, sub, period)
+    return _result(run, model, truth, target, controller, plant_model, limits, period, dt, float(sensor_noise))
+
+
+def _checked_setup(model, target, limits, vmin, vmax, plant_model, sensor_bias) -> tuple:
+    """``(target, limits, plant's plate, sensor bias)`` once checked against the controller's ``model``."""
+    target = np.asarray(target, dtype=float)
+    if target.shape != (model.n,):
+        raise InputError(f"target: shape {target.shape}, expected ({model.n},)")
+    m = model.n_inputs
+    if limits is None:
+        limits = VoltageLimits.from_user(vmin, vmax, m)
+    elif vmin is not None or vmax is not None:
+        raise InputError("simulate_closed_loop: give limits= or vmin/vmax, not both")
+    truth = model if plant_model is None else plant_model
+    if truth.n != model.n or truth.n_inputs != m:
+        raise InputError(
+            f"plant_model: {truth.n} dofs and {truth.n_inputs} patches, expected the model's {model.n} and {m}"
+        )
+    bias = np.zeros(m) if sensor_bias is None else np.broadcast_to(np.asarray(sensor_bias, dtype=float), (m,))
+    if not np.all(np.isfinite(bias)):
+        raise InputError(f"sensor_bias = {sensor_bias!r}: expected finite offsets (sensor units, m)")
+    return target, limits, truth, bias
+
+
+def _timing(controller: Controller, t_end: float, sensor_noise: float, plant_dt: float | None):
+    """The control period, the plant step and the plant steps per period, once checked."""
     period = float(controller.period)
     if not (np.isfinite(period) and period > 0):
         raise InputError(f"period = {period!r}: expected a positive control period (s)")
@@ -254,90 +295,94 @@ def simulate_closed_loop(
     dt = period if plant_dt is None else float(plant_dt)
     if not (np.isfinite(dt) and dt > 0):
         raise InputError(f"plant_dt = {plant_dt!r}: expected a positive step (s)")
-    sub = _steps(period, dt, "plant_dt")
-    target = np.asarray(target, dtype=float)
-    if target.shape != (model.n,):
-        raise InputError(f"target: shape {target.shape}, expected ({model.n},)")
-    m = model.n_inputs
-    if limits is None:
-        limits = VoltageLimits.from_user(vmin, vmax, m)
-    elif vmin is not None or vmax is not None:
-        raise InputError("simulate_closed_loop: give limits= or vmin/vmax, not both")
-    lo, hi = limits.side("lower"), limits.side("upper")
-    n_ctrl = int(np.floor(t_end / period + 1e-9))
-    n_steps = n_ctrl * sub
+    return period, dt, _steps(period, dt, "plant_dt")
 
-    truth = model if plant_model is None else plant_model
-    if truth.n != model.n or truth.n_inputs != m:
-        raise InputError(
-            f"plant_model: {truth.n} dofs and {truth.n_inputs} patches, expected the model's {model.n} and {m}"
-        )
-    bias = np.zeros(m) if sensor_bias is None else np.broadcast_to(np.asarray(sensor_bias, dtype=float), (m,))
-    if not np.all(np.isfinite(bias)):
-        raise InputError(f"sensor_bias = {sensor_bias!r}: expected finite offsets (sensor units, m)")
-    plant_model = make_plant(truth, dt, plant, plant_band_hz)
-    z0 = np.zeros(model.n) if z0 is None else np.asarray(z0, dtype=float)
-    zdot0 = np.zeros(model.n) if zdot0 is None else np.asarray(zdot0, dtype=float)
-    x = plant_model.initial_state(z0, zdot0)
-    C = truth.sensing
-    rng = np.random.default_rng(seed)
-    U_act = np.empty((n_ctrl, m)) if actuator is not None else None
-    if actuator is not None:
-        actuator.reset()
 
-    Z = np.empty((n_steps + 1, model.n))
-    Zd = np.empty((n_steps + 1, model.n))
-    U = np.empty((n_ctrl, m))
-    Ureq = np.empty((n_ctrl, m))
-    Y = np.empty((n_ctrl, m))
-    step_s = np.empty(n_ctrl)
-    Z[0], Zd[0] = plant_model.fields(x)
+@dataclass
+class _Sensors:
+    """What the controller reads: the plant's patch sensors, offset by ``bias`` (``None``: none) and noisy."""
 
-    controller.reset(model, target)
-    for k in range(n_ctrl):
-        y = C @ Z[k * sub]
-        if sensor_bias is not None:
-            y = y + bias
-        if sensor_noise > 0:
-            y = y + sensor_noise * rng.standard_normal(m)
+    C: np.ndarray
+    bias: np.ndarray | None
+    noise: float
+    rng: np.random.Generator
+    m: int
+
+    def read(self, z: np.ndarray) -> np.ndarray:
+        y = self.C @ z
+        if self.bias is not None:
+            y = y + self.bias
+        if self.noise > 0:
+            y = y + self.noise * self.rng.standard_normal(self.m)
+        return y
+
+
+@dataclass
+class _Run:
+    """The loop's histories: fields at every plant step, voltages and samples at every control instant."""
+
+    Z: np.ndarray
+    Zd: np.ndarray
+    U: np.ndarray
+    Ureq: np.ndarray
+    Y: np.ndarray
+    step_s: np.ndarray
+    U_act: np.ndarray | None
+
+    @classmethod
+    def empty(cls, n_ctrl: int, sub: int, n: int, m: int, acting: bool) -> _Run:
+        fields = (np.empty((n_ctrl * sub + 1, n)) for _ in range(2))
+        per_instant = (np.empty((n_ctrl, m)) for _ in range(3))
+        return cls(*fields, *per_instant, np.empty(n_ctrl), np.empty((n_ctrl, m)) if acting else None)
+
+
+def _run(run: _Run, controller, plant, x, sensors: _Sensors, limits: VoltageLimits, actuator, sub, period) -> None:
+    """Sample, ask the controller, clip, hold for one period (``sub`` plant steps), at every instant of ``run``."""
+    m = sensors.m
+    run.Z[0], run.Zd[0] = plant.fields(x)
+    for k in range(run.U.shape[0]):
+        y = sensors.read(run.Z[k * sub])
         t0 = time.perf_counter()
         u = np.asarray(controller.step(y), dtype=float).reshape(m)
-        step_s[k] = time.perf_counter() - t0
+        run.step_s[k] = time.perf_counter() - t0
         if not np.all(np.isfinite(u)):
             raise InputError(f"controller {controller.name!r} returned non-finite voltages at t = {k * period:g} s")
-        Ureq[k] = u
+        run.Ureq[k] = u
         u = limits.clip(u)
-        U[k], Y[k] = u, y
+        run.U[k], run.Y[k] = u, y
         u_act = u
         if actuator is not None:
-            u_act = U_act[k] = np.asarray(actuator.apply(u, period), dtype=float)
+            u_act = run.U_act[k] = np.asarray(actuator.apply(u, period), dtype=float)
         for s in range(sub):
-            x = plant_model.step(x, u_act)
-            Z[k * sub + s + 1], Zd[k * sub + s + 1] = plant_model.fields(x)
+            x = plant.step(x, u_act)
+            run.Z[k * sub + s + 1], run.Zd[k * sub + s + 1] = plant.fields(x)
 
-    t = np.arange(n_steps + 1) * dt
+
+def _result(run, model, truth, target, controller, plant_model, limits, period, dt, sensor_noise) -> ClosedLoopResult:
+    """The run's histories as a :class:`ClosedLoopResult`, with the shape error in the plant's mass norm."""
+    n_ctrl = run.U.shape[0]
     norm_d = float(truth.m_norm(target))
-    err = np.asarray(truth.m_norm(Z - target)) / (norm_d if norm_d > 0 else 1.0)
+    err = np.asarray(truth.m_norm(run.Z - target)) / (norm_d if norm_d > 0 else 1.0)
     info = {"plant_build_s": plant_model.build_seconds}
-    if U_act is not None:
-        info["u_acting"] = U_act
+    if run.U_act is not None:
+        info["u_acting"] = run.U_act
     return ClosedLoopResult(
-        t=t,
-        z=Z,
-        zdot=Zd,
+        t=np.arange(run.Z.shape[0]) * dt,
+        z=run.Z,
+        zdot=run.Zd,
         t_u=np.arange(n_ctrl) * period,
-        u=U,
-        y=Y,
-        tip=np.asarray(model.tip_corners(Z)),
+        u=run.U,
+        y=run.Y,
+        tip=np.asarray(model.tip_corners(run.Z)),
         shape_error=err,
-        u_requested=Ureq,
-        step_seconds=step_s,
+        u_requested=run.Ureq,
+        step_seconds=run.step_s,
         controller=str(getattr(controller, "name", type(controller).__name__)),
         period=period,
         plant_dt=dt,
         plant=plant_model.description,
-        vmin=lo,
-        vmax=hi,
-        sensor_noise=float(sensor_noise),
+        vmin=limits.side("lower"),
+        vmax=limits.side("upper"),
+        sensor_noise=sensor_noise,
         info=info,
     )

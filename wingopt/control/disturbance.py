@@ -146,13 +146,53 @@ def assemble_offset_free_qp(problem: TrackingProblem, horizon: int, formulation:
     N, m, nx = int(horizon), problem.m, problem.nx
     nw, nX = N * m, N * nx
     nv, npar = nw + nX, 2 * nx + 3 * m
+    J = _offset_free_cost(problem, N)
+    Hz = J.hessian()
+    H, Qp, Cpp = Hz[:nv, :nv], Hz[:nv, nv:], Hz[nv:, nv:]
+    F, G = problem.F, problem.G
+    B_dyn = np.zeros((nX, npar))
+    B_dyn[:nx, :nx] = F
+    B_dyn[:, nx + m : nx + 2 * m] = np.tile(G, (N, 1))
+    A_in, l0, u0, Lp = _input_rows(problem, N, nv, npar)
+    qp = ParametricQP(
+        H=H,
+        q0=J.g[:nv],
+        Qp=Qp,
+        A_in=A_in,
+        l0=l0,
+        Lp=Lp,
+        u0=u0,
+        Up=Lp.copy(),
+        A_eq=dynamics_rows(F, G, N),
+        b0=np.zeros(nX),
+        Bp=sp.csc_matrix(B_dyn),
+        c0=J.c,
+        cp=J.g[nv:],
+        Cpp=Cpp.toarray(),
+        names={
+            "formulation": "sparse",
+            "horizon": N,
+            "n_inputs": m,
+            "n_states": nx,
+            "n_dynamics_rows": nX,
+            "offset_free": True,
+        },
+    )
+    return qp if formulation == "sparse" else condense(qp, problem)
+
+
+def _offset_free_cost(problem: TrackingProblem, N: int) -> _Quadratic:
+    """The horizon's cost over ``(w, x, p)``: tracking, input and rate weights, the residual field of
+    the acting voltage ``w_k + d``, and the terminal cost anchored at the parameters ``(x_s, w_s)``."""
+    m, nx = problem.m, problem.nx
+    nw, nX = N * m, N * nx
+    nv, npar = nw + nX, 2 * nx + 3 * m
     iw = lambda k: np.arange(k * m, (k + 1) * m)  # noqa: E731
     ix = lambda k: nw + np.arange((k - 1) * nx, k * nx)  # noqa: E731
     ip_w = nv + nx + np.arange(m)
     ip_d = ip_w + m
     ip_xs = nv + nx + 2 * m + np.arange(nx)
     ip_ws = nv + 2 * nx + 2 * m + np.arange(m)
-
     J = _Quadratic(nv + npar)
     Q, x_d = problem.Q, problem.x_target
     gR, hR = problem.residual_gram, problem.residual_target
@@ -173,14 +213,14 @@ def assemble_offset_free_qp(problem: TrackingProblem, horizon: int, formulation:
     J.add(np.r_[ix(N), ip_xs], np.block([[Z, Z], [-Lam.T, Lam.T]]))
     J.linear(ix(N), Lam @ x_d)
     J.linear(ip_xs, -Lam @ x_d)
-    Hz = J.hessian()
-    H, Qp, Cpp = Hz[:nv, :nv], Hz[:nv, nv:], Hz[nv:, nv:]
+    return J
 
-    F, G = problem.F, problem.G
-    A_dyn = dynamics_rows(F, G, N)
-    B_dyn = np.zeros((nX, npar))
-    B_dyn[:nx, :nx] = F
-    B_dyn[:, nx + m : nx + 2 * m] = np.tile(G, (N, 1))
+
+def _input_rows(problem: TrackingProblem, N: int, nv: int, npar: int):
+    """The horizon's inequality rows ``(A_in, l0, u0, Lp)``: the voltage limits and, with a slew
+    rate, the first step from ``w_prev`` (a parameter) and every later step."""
+    m, nx = problem.m, problem.nx
+    nw, nX = N * m, N * nx
     sel_w = sp.hstack([sp.identity(nw), sp.csc_matrix((nw, nX))], format="csc")
     in_A, in_l, in_u = [sel_w], [np.tile(problem.w_min, N)], [np.tile(problem.w_max, N)]
     in_Lp = [sp.csc_matrix((nw, npar))]
@@ -197,29 +237,5 @@ def assemble_offset_free_qp(problem: TrackingProblem, horizon: int, formulation:
             in_l.append(np.full(nw - m, -s))
             in_u.append(np.full(nw - m, s))
             in_Lp.append(sp.csc_matrix((nw - m, npar)))
-    Lp = sp.vstack(in_Lp, format="csc")
-    qp = ParametricQP(
-        H=H,
-        q0=J.g[:nv],
-        Qp=Qp,
-        A_in=sp.vstack(in_A, format="csc"),
-        l0=np.concatenate(in_l),
-        Lp=Lp,
-        u0=np.concatenate(in_u),
-        Up=Lp.copy(),
-        A_eq=A_dyn,
-        b0=np.zeros(nX),
-        Bp=sp.csc_matrix(B_dyn),
-        c0=J.c,
-        cp=J.g[nv:],
-        Cpp=Cpp.toarray(),
-        names={
-            "formulation": "sparse",
-            "horizon": N,
-            "n_inputs": m,
-            "n_states": nx,
-            "n_dynamics_rows": nX,
-            "offset_free": True,
-        },
-    )
-    return qp if formulation == "sparse" else condense(qp, problem)
+    A_in, Lp = sp.vstack(in_A, format="csc"), sp.vstack(in_Lp, format="csc")
+    return A_in, np.concatenate(in_l), np.concatenate(in_u), Lp

@@ -98,14 +98,7 @@ class TrackingProblem:
         t0 = time.perf_counter()
         band = settings.band_hz or 0.5 / period
         if reduced is None:
-            reduced = reduce_system(
-                model.system,
-                output=model.sensing,
-                tol=settings.reduction_tol,
-                band_hz=band,
-                max_modes=settings.max_modes,
-                correction=settings.correction,
-            )
+            reduced = _reduce(model, settings, band)
         timings["reduction_s"] = time.perf_counter() - t0
         t1 = time.perf_counter()
         target = np.asarray(target, dtype=float)
@@ -118,11 +111,7 @@ class TrackingProblem:
         Phi = reduced.basis
         q_d = Phi.T @ (M @ target)
         z_perp = target - Phi @ q_d
-        Rt = reduced.residual * (VOLT_SCALE / s)
-        MR = np.asarray(M @ Rt)
-        gram_R = Rt.T @ MR
-        h_R = MR.T @ z_perp / s
-        c_R = float(z_perp @ (M @ z_perp)) / s**2
+        gram_R, h_R, c_R = _residual_terms(reduced, M, z_perp, s)
         Sg = reduced.static_gain() * (VOLT_SCALE / s)
         shape_gram = Sg.T @ Sg + gram_R  # == VOLT^2/s^2 Zs^T M Zs (the static problem's)
         m = G.shape[1]
@@ -133,38 +122,15 @@ class TrackingProblem:
         slew = None if settings.slew_rate is None else settings.slew_rate * period / VOLT_SCALE
 
         # Static optimum on the full model (same weights): the steady state the QP must settle at.
-        zs_fields = static_fields(model) if fields is None else fields
-        static = static_optimum(
-            model,
-            target,
-            vmin=vmin,
-            vmax=vmax,
-            input_weight=settings.input_weight,
-            input_weight_si=settings.input_weight_si,
-            backend=settings.solver,
-            fields=zs_fields,
-        )
+        static = _static(model, target, vmin, vmax, settings, fields)
         w_s = static.voltages / VOLT_SCALE
         r = reduced.size
         x_s = np.r_[Sg @ w_s, np.zeros(r)]
         timings["static_s"] = time.perf_counter() - t1
 
-        # Terminal cost: LQR of the augmented model xi = (x, w_prev), input w, on the stage cost
-        #   (F x + G w - x_s)' Q (...) + w' (gram_R + rho) w + sigma |w - w_prev|^2   (deviation form).
         t2 = time.perf_counter()
-        nx = F.shape[0]
         Q = np.diag(np.r_[np.ones(r), np.full(r, beta)])
-        Fa = np.block([[F, np.zeros((nx, m))], [np.zeros((m, nx)), np.zeros((m, m))]])
-        Ga = np.vstack([G, np.eye(m)])
-        Qa = sla.block_diag(F.T @ Q @ F, sigma * np.eye(m))
-        Na = np.vstack([F.T @ Q @ G, -sigma * np.eye(m)])
-        Ra = G.T @ Q @ G + gram_R + (rho + sigma) * np.eye(m)
-        _, P, _ = dlqr(Fa, Ga, Qa, 0.5 * (Ra + Ra.T), Na)
-        P = 0.5 * (P + P.T)
-        # Steady-state multiplier: stationarity of the rotated cost in x at (x_s, w_s).
-        x_d = np.r_[q_d / s, np.zeros(r)]
-        grad_x = 2.0 * F.T @ Q @ (x_s - x_d)
-        lam = -np.linalg.solve((np.eye(nx) - F).T, grad_x)
+        P, lam = _terminal_cost(F, G, Q, gram_R, rho, sigma, x_s, np.r_[q_d / s, np.zeros(r)])
         timings["terminal_s"] = time.perf_counter() - t2
         return cls(
             reduced=reduced,
@@ -212,3 +178,60 @@ class TrackingProblem:
             x = self.F @ x + self.G @ wk
             X[k] = x
         return X
+
+
+def _reduce(model, settings: QPSettings, band: float) -> ReducedModel:
+    """The QP's reduced model of the plate: modes in ``band`` (Hz) seen by the sensors, with the static correction."""
+    return reduce_system(
+        model.system,
+        output=model.sensing,
+        tol=settings.reduction_tol,
+        band_hz=band,
+        max_modes=settings.max_modes,
+        correction=settings.correction,
+    )
+
+
+def _static(model, target: np.ndarray, vmin, vmax, settings: QPSettings, fields: np.ndarray | None):
+    """The static optimum on the full model with the QP's weights (``fields``: the patches' static fields)."""
+    return static_optimum(
+        model,
+        target,
+        vmin=vmin,
+        vmax=vmax,
+        input_weight=settings.input_weight,
+        input_weight_si=settings.input_weight_si,
+        backend=settings.solver,
+        fields=static_fields(model) if fields is None else fields,
+    )
+
+
+def _terminal_cost(F, G, Q, gram_R, rho, sigma, x_s, x_d) -> tuple[np.ndarray, np.ndarray]:
+    """The terminal cost ``P`` and the steady-state multiplier ``lam`` of the scaled QP.
+
+    ``P``: the LQR of the augmented model ``xi = (x, w_prev)``, input ``w``, on the stage cost
+    ``(F x + G w - x_s)' Q (...) + w' (gram_R + rho) w + sigma |w - w_prev|^2`` (deviation form);
+    ``lam``: stationarity of the rotated cost in ``x`` at the static optimum ``x_s`` (target ``x_d``).
+    """
+    nx, m = F.shape[0], G.shape[1]
+    Fa = np.block([[F, np.zeros((nx, m))], [np.zeros((m, nx)), np.zeros((m, m))]])
+    Ga = np.vstack([G, np.eye(m)])
+    Qa = sla.block_diag(F.T @ Q @ F, sigma * np.eye(m))
+    Na = np.vstack([F.T @ Q @ G, -sigma * np.eye(m)])
+    Ra = G.T @ Q @ G + gram_R + (rho + sigma) * np.eye(m)
+    _, P, _ = dlqr(Fa, Ga, Qa, 0.5 * (Ra + Ra.T), Na)
+    P = 0.5 * (P + P.T)
+    grad_x = 2.0 * F.T @ Q @ (x_s - x_d)
+    lam = -np.linalg.solve((np.eye(nx) - F).T, grad_x)
+    return P, lam
+
+
+def _residual_terms(reduced: ReducedModel, M, z_perp: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """The scaled cost of the field the reduced basis misses: the residual's Gram matrix, its cross
+    term with the target's unreduced part ``z_perp`` and that part's own (constant) cost."""
+    Rt = reduced.residual * (VOLT_SCALE / s)
+    MR = np.asarray(M @ Rt)
+    gram_R = Rt.T @ MR
+    h_R = MR.T @ z_perp / s
+    c_R = float(z_perp @ (M @ z_perp)) / s**2
+    return gram_R, h_R, c_R

@@ -309,6 +309,22 @@ def care_nk_adi(
     """
     t0 = time.perf_counter()
     n = M.shape[0]
+    b, R, C = _checked_weights(b, R, C, n)
+    solver = _ShiftedSolver(M, D, Kst, b)
+    U0 = _first_shift_space(solver, shift_basis, shift_modes)
+    K = np.zeros((b.shape[1], 2 * n)) if K0 is None else np.asarray(K0, dtype=float).copy()
+    gain_tol = 2 * tol if gain_tol is None else gain_tol
+    out = _newton(solver, C, R, K, U0, tol, adi_tol, max_newton, max_adi, gain_tol, reuse_shifts)
+    out.factorizations = solver.factorizations
+    out.wall_s = time.perf_counter() - t0
+    if not out.converged:
+        change = out.gain_changes[-1]
+        log.warning("NK-ADI: gain change %.2e after %d Newton steps (tol %.0e)", change, out.newton_steps, tol)
+    return out
+
+
+def _checked_weights(b, R, C, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``b``, ``R`` and ``C`` as float arrays, ``R`` symmetric positive definite and ``C`` on ``2 n`` states."""
     b = np.asarray(b, dtype=float)
     m = b.shape[1]
     R = np.atleast_2d(np.asarray(R, dtype=float))
@@ -317,25 +333,33 @@ def care_nk_adi(
     C = np.atleast_2d(np.asarray(C, dtype=float))
     if C.shape[1] != 2 * n:
         raise InputError(f"C: shape {C.shape}, expected (p, {2 * n})")
-    solver = _ShiftedSolver(M, D, Kst, b)
-    Msp, Dsp, Ksp = solver.M, solver.D, solver.Kst
+    return b, R, C
 
-    def A_op(X):  # A^T X for A = [[0, I], [-K, -D]] (K, D symmetric)
-        return np.vstack([-(Ksp @ X[n:]), X[:n] - Dsp @ X[n:]])
 
-    # First projection space: the lowest modes, as displacement and as velocity fields.
+def _first_shift_space(solver: _ShiftedSolver, shift_basis, shift_modes: int) -> np.ndarray:
+    """The first projection space: the lowest undamped modes, as displacement and as velocity fields."""
+    n = solver.M.shape[0]
     if shift_basis is not None:
         Phi = np.asarray(shift_basis, dtype=float)
         s = Phi.shape[1]
     else:
         s = int(min(shift_modes, n - 1))
-        _, Phi = SecondOrderSystem(Msp, Dsp, Ksp, b).undamped_modes(s)
+        _, Phi = SecondOrderSystem(solver.M, solver.D, solver.Kst, solver.b).undamped_modes(s)
     U0 = np.zeros((2 * n, 2 * s))
     U0[:n, :s] = Phi
     U0[n:, s:] = Phi
-    Rch = np.linalg.cholesky(0.5 * (R + R.T))
-    Rinv = np.linalg.inv(R)
-    K = np.zeros((m, 2 * n)) if K0 is None else np.asarray(K0, dtype=float).copy()
+    return U0
+
+
+def _newton(solver, C, R, K, U0, tol, adi_tol, max_newton, max_adi, gain_tol, reuse_shifts) -> NKADIResult:
+    """Newton–Kleinman from the gain ``K``: one low-rank ADI Lyapunov solve per step, until the gain
+    settles (``tol``) or stagnates at the ADI's accuracy."""
+    n, Ksp, Dsp = solver.M.shape[0], solver.Kst, solver.D
+
+    def A_op(X):  # A^T X for A = [[0, I], [-K, -D]] (K, D symmetric)
+        return np.vstack([-(Ksp @ X[n:]), X[:n] - Dsp @ X[n:]])
+
+    Rch, Rinv = np.linalg.cholesky(0.5 * (R + R.T)), np.linalg.inv(R)
     out = NKADIResult(K=K)
     shifts: list | None = None
     for it in range(max_newton):
@@ -348,7 +372,7 @@ def care_nk_adi(
             U0,
             tol=adi_tol,
             max_steps=max_adi,
-            gain_tol=2 * tol if gain_tol is None else gain_tol,
+            gain_tol=gain_tol,
             shifts0=shifts if reuse_shifts else None,
         )
         shifts = used
@@ -372,8 +396,4 @@ def care_nk_adi(
             break
     out.K = K
     out.newton_steps = len(out.gain_changes)
-    out.factorizations = solver.factorizations
-    out.wall_s = time.perf_counter() - t0
-    if not out.converged:
-        log.warning("NK-ADI: gain change %.2e after %d Newton steps (tol %.0e)", change, out.newton_steps, tol)
     return out

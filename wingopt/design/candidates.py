@@ -155,3 +155,25 @@ def parse_candidates(spec: str | None, problem: MembraneProblem, sub: int = 2) -
         if not extra:
             raise InputError("--candidates only-rects: no rect= items and no sensors in the problem")
     return candidate_grid(problem, sizes, step, sub, keepout, extra, grid)
+
+
+def with_problem_sensors(problem, cands: CandidateSet) -> tuple[CandidateSet, np.ndarray | None]:
+    """Append the problem's own sensors (the default layout) unless already candidates."""
+    if not problem.sensors:
+        return cands, None
+    idx, extra = [], []
+    for s in problem.sensors:
+        i = cands.find(s.rect)
+        if i is None:
+            extra.append(s.rect)
+            idx.append(len(cands) + len(extra) - 1)
+        else:
+            idx.append(i)
+    if extra:
+        cands = CandidateSet(
+            np.vstack([cands.rects, np.array(extra, dtype=float)]),
+            np.concatenate([cands.size_index, -np.ones(len(extra), dtype=int)]),
+            cands.sizes,
+            cands.keepout,
+        )
+    return cands, np.array(idx)

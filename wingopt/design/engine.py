@@ -24,19 +24,22 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from wingopt import resources
-from wingopt.design.candidates import CandidateSet, parse_candidates
+from wingopt.design.assessment import baseline_report, relaxation_report
+from wingopt.design.candidates import CandidateSet, parse_candidates, with_problem_sensors
 from wingopt.design.criteria import LINEAR_CRITERIA, LinearCriterion, state_prior_std
-from wingopt.design.criteria import reduced_value as _reduced_value
 from wingopt.design.information import InformationSettings, ModalSensitivity
 from wingopt.design.priors import PRIORS, gp_prior, smooth_loads, tikhonov_prior
 from wingopt.design.risk import BayesRisk
-from wingopt.design.selection import greedy, overlap_matrix, relax, round_weights, swap_improve
+from wingopt.design.search import Search, search_layout
+from wingopt.design.selection import overlap_matrix
 from wingopt.design.stack import information_stack
 from wingopt.errors import InputError
+from wingopt.estimation.declaration import declaration_of
 from wingopt.membrane import MembraneModel
 from wingopt.status import RunStatus, from_solver_statuses
 
 __all__ = ["CRITERIA", "STAGES", "DesignSettings", "DesignResult", "design_sensors", "predicted_error_field"]
+__all__ += ["check_sensor_count"]
 
 log = logging.getLogger(__name__)
 
@@ -177,26 +180,33 @@ def _length(problem, s: DesignSettings) -> float:
     return DEFAULT_LENGTH * problem.width if s.length_scale is None else s.length_scale
 
 
-def _with_problem_sensors(problem, cands: CandidateSet) -> tuple[CandidateSet, np.ndarray | None]:
-    """Append the problem's own sensors (the default layout) unless already candidates."""
-    if not problem.sensors:
-        return cands, None
-    idx, extra = [], []
-    for s in problem.sensors:
-        i = cands.find(s.rect)
-        if i is None:
-            extra.append(s.rect)
-            idx.append(len(cands) + len(extra) - 1)
-        else:
-            idx.append(i)
-    if extra:
-        cands = CandidateSet(
-            np.vstack([cands.rects, np.array(extra, dtype=float)]),
-            np.concatenate([cands.size_index, -np.ones(len(extra), dtype=int)]),
-            cands.sizes,
-            cands.keepout,
+def check_sensor_count(count) -> None:
+    """Refuse a sensor count that is not a positive integer within :data:`MAX_COUNT` (the one check)."""
+    if isinstance(count, bool) or not (isinstance(count, (int, np.integer)) and count >= 1):
+        raise InputError(f"count = {count!r}: expected a positive number of sensors")
+    if count > MAX_COUNT:
+        raise InputError(f"count = {count}: more than the limit of {MAX_COUNT} sensors to design")
+
+
+def _checked_settings(problem, count, candidates, settings, overrides: dict) -> DesignSettings:
+    """The design's settings (``overrides`` applied) once its inputs are known good."""
+    if getattr(problem, "kind", None) != "membrane":
+        raise InputError(
+            f"problem: sensor design needs a membrane problem, got kind {getattr(problem, 'kind', None)!r}"
         )
-    return cands, np.array(idx)
+    if settings is not None and not isinstance(settings, DesignSettings):
+        raise InputError(f"settings = {settings!r}: expected a DesignSettings or None")
+    s = settings or DesignSettings()
+    if overrides:
+        import dataclasses
+
+        for key in sorted(set(overrides) - {f.name for f in dataclasses.fields(DesignSettings)}):
+            raise InputError(f"{key}: not a DesignSettings field")
+        s = dataclasses.replace(s, **overrides)
+    check_sensor_count(count)
+    if candidates is not None and not isinstance(candidates, (str, CandidateSet)):
+        raise InputError(f"candidates = {candidates!r}: expected a CandidateSet, a --candidates SPEC string or None")
+    return s
 
 
 def design_sensors(
@@ -224,147 +234,135 @@ def design_sensors(
     **overrides
         Fields of :class:`DesignSettings` (e.g. ``criterion="a"``).
     """
-    if getattr(problem, "kind", None) != "membrane":
-        raise InputError(
-            f"problem: sensor design needs a membrane problem, got kind {getattr(problem, 'kind', None)!r}"
-        )
-    if settings is not None and not isinstance(settings, DesignSettings):
-        raise InputError(f"settings = {settings!r}: expected a DesignSettings or None")
-    s = settings or DesignSettings()
-    if overrides:
-        import dataclasses
-
-        for key in sorted(set(overrides) - {f.name for f in dataclasses.fields(DesignSettings)}):
-            raise InputError(f"{key}: not a DesignSettings field")
-        s = dataclasses.replace(s, **overrides)
-    if isinstance(count, bool) or not (isinstance(count, (int, np.integer)) and count >= 1):
-        raise InputError(f"count = {count!r}: expected a positive number of sensors")
-    if count > MAX_COUNT:
-        raise InputError(f"count = {count}: more than the limit of {MAX_COUNT} sensors to design")
-    if candidates is not None and not isinstance(candidates, (str, CandidateSet)):
-        raise InputError(f"candidates = {candidates!r}: expected a CandidateSet, a --candidates SPEC string or None")
+    s = _checked_settings(problem, count, candidates, settings, overrides)
     resources.check(resources.estimate_modes(problem.nodes, "membrane", knob="mesh"))
     t0 = time.perf_counter()
     log.info("design: %d sensors, criterion %s", count, s.criterion)
-    timings: dict[str, float] = {}
-    warnings: list[str] = []
     if candidates is None or isinstance(candidates, str):
         candidates = parse_candidates(candidates, problem, s.information.sub)
-    cands, default_idx = _with_problem_sensors(problem, candidates)
+    cands, default_idx = with_problem_sensors(problem, candidates)
     if count > len(cands):
         raise InputError(f"count = {count}: more than the {len(cands)} candidates")
     nominal = s.nominal_count or (12 if s.criterion == "risk" else 4)
     resources.check(resources.estimate_design(problem.nodes, len(cands), nominal, count))
     say = progress or (lambda stage, fraction: None)
+    timings: dict[str, float] = {}
+    info = _information(problem, s, cands, say, t0, timings)
+    crit = _criteria(problem, s, count, info, say, t0, timings)
+    overlap = None if s.allow_overlap else overlap_matrix(cands.rects)
+    found = search_layout(crit.linear, crit.risk, count, overlap, info.stack, s.rank, s.swap_passes, say, t0, timings)
+    risk, risk_index = _risk_of(crit, info, s, default_idx, found)
+    warnings: list[str] = []
+    relaxation = relaxation_report(crit.kind, crit.linear, found, warnings)
+    baselines = baseline_report(
+        crit.risk if crit.risk is not None else crit.linear, found, default_idx, count, warnings
+    )
+    pred = predictions(s, count, crit, info, risk, risk_index, found.best, warnings)
+    timings["total"] = time.perf_counter() - t0
+    return DesignResult(
+        problem,
+        s,
+        cands,
+        np.asarray(found.best),
+        float(found.value),
+        pred,
+        relaxation,
+        baselines,
+        timings,
+        warnings,
+        risk,
+        info.sens,
+        crit.linear,
+        risk_index,
+    )
+
+
+@dataclass(frozen=True)
+class _Information:
+    """The packed information of every candidate along the nominal family, and what built it."""
+
+    model: MembraneModel
+    sens: ModalSensitivity
+    q0: np.ndarray
+    loads: list
+    stack: object
+
+
+def _information(problem, s: DesignSettings, cands: CandidateSet, say, t0: float, timings: dict) -> _Information:
+    """The information of every candidate, packed (:mod:`wingopt.design.stack`): the design's memory."""
     say("model", 0.0)
     model = MembraneModel.from_problem(problem.with_sensors(()))
     sens = ModalSensitivity.from_model(model, s.information)
     chat = sens.modal_matrices(cands.rects)
     q0 = sens.initial_state()
     loads = nominal_loads(problem, s)
-    # The information of every candidate, packed (wingopt.design.stack): the design's memory.
     scale = np.concatenate([state_prior_std(sens, q0), np.ones(sens.m)])
     modal = [sens.modal_load(model.project(P)) for P in loads]
     stack = information_stack(sens, chat, modal, q0, scale, progress=lambda f: say("information", f))
     timings["information"] = time.perf_counter() - t0
     log.info(
         "information of %d candidates x %d nominal loads in %.1f s (%.0f MB)",
-        len(cands), len(loads), timings["information"], stack.nbytes / 2**20,
-    )  # fmt: skip
+        len(cands),
+        len(loads),
+        timings["information"],
+        stack.nbytes / 2**20,
+    )
+    return _Information(model, sens, q0, loads, stack)
 
+
+@dataclass(frozen=True)
+class _Criteria:
+    """The design's criteria: the risk (when it is the criterion), the linear one and its prior."""
+
+    kind: str
+    risk: BayesRisk | None
+    linear: LinearCriterion
+    prior: object
+
+
+def _criteria(problem, s: DesignSettings, count: int, info: _Information, say, t0: float, timings: dict) -> _Criteria:
+    """Build the risk (over all candidates only when it is the criterion) and the linear criterion."""
     t1 = time.perf_counter()
     say("criteria", 0.0)
-    # The risk over all candidates only when it is the criterion; else on the layouts reported.
+    sens, stack, loads, q0 = info.sens, info.stack, info.loads, info.q0
     risk = BayesRisk.build(sens, stack, loads, q0, s.aggregate) if s.criterion == "risk" else None
     if s.prior == "gp":
-        prior = gp_prior(model, _length(problem, s), abs(problem.identification.initial_load))
+        prior = gp_prior(info.model, _length(problem, s), abs(declaration_of(problem).initial_load))
     else:
         mean_sum = stack.mean()[None] * count
         r_ = risk or BayesRisk.build(sens, stack.take([0]), loads, q0)
-        prior = tikhonov_prior(model, float(np.mean(r_.rule_lambdas(mean_sum, count))))
+        prior = tikhonov_prior(info.model, float(np.mean(r_.rule_lambdas(mean_sum, count))))
     kind = "a" if s.criterion == "risk" else s.criterion
     linear = LinearCriterion.build(kind, sens, stack, prior, q0, s.aggregate)
     timings["criteria"] = time.perf_counter() - t1
     log.info("criteria done at %.1f s", time.perf_counter() - t0)
-    overlap = None if s.allow_overlap else overlap_matrix(cands.rects)
+    return _Criteria(kind, risk, linear, prior)
 
-    t2 = time.perf_counter()
-    say("relaxation", 0.0)
-    reduced = linear.reduced(s.rank)
-    with stack.spilled():  # the solver's copy of the SDP is large: the information waits on disk
-        rel = relax(linear, count, s.rank, reduced=reduced)
-    timings["relaxation"] = time.perf_counter() - t2
-    log.info("relaxation done at %.1f s", time.perf_counter() - t0)
-    rounded = round_weights(rel.weights, count, overlap)
-    t3 = time.perf_counter()
-    crit = risk if risk is not None else linear
-    greedy_risk = s.criterion == "risk" and count <= 8 and s.swap_passes > 0
-    share = 0.5 if greedy_risk else 1.0
-    g_layout, _ = greedy(linear, count, overlap, tick=lambda f: say("greedy", share * f))
-    starts = {"relaxation": rounded, "greedy": g_layout}
-    if greedy_risk:
-        # greedy on the risk itself is a third start (costly for many sensors: K batched passes)
-        starts["greedy-risk"] = greedy(risk, count, overlap, tick=lambda f: say("greedy", 0.5 + 0.5 * f))[0]
-    timings["greedy"] = time.perf_counter() - t3
-    log.info("greedy done at %.1f s", time.perf_counter() - t0)
-    t4 = time.perf_counter()
-    best, best_val, best_from = None, np.inf, None
-    for n, (name, start) in enumerate(starts.items()):
-        # passes done -> a fraction of this start's swaps (how many passes it takes is not known)
-        lay, path = swap_improve(
-            crit, start, overlap, max_passes=s.swap_passes,
-            tick=lambda p, n=n: say("swaps", (n + p / (np.floor(p) + 2)) / len(starts)),
-        )  # fmt: skip
-        if path[-1] < best_val:
-            best, best_val, best_from = lay, path[-1], name
-    timings["swaps"] = time.perf_counter() - t4
-    log.info("swaps done at %.1f s", time.perf_counter() - t0)
 
-    if risk is None:
-        keep = [best, rounded, g_layout] + ([default_idx] if default_idx is not None else [])
-        sub = np.unique(np.concatenate(keep))
-        risk = BayesRisk.build(sens, stack.take(sub), loads, q0, s.aggregate)
-        where = {int(c): k for k, c in enumerate(sub)}
-        risk_index = np.array([where[int(c)] for c in best])
-    else:
-        risk_index = np.asarray(best)
-    info_r, weight_r, const_r, _ = reduced
-    red = _reduced_value(linear, info_r, weight_r, const_r, best)
-    relaxation = {
-        "criterion": kind,
-        "bound": rel.bound,
-        "chosen_reduced": red,
-        "gap": red - rel.bound,
-        "relative_gap": (red - rel.bound) / abs(red) if red else None,
-        "rounded_value": linear.value(rounded),
-        "solver": rel.solver,
-        "status": rel.status,
-        "rank": rel.rank,
-        "dropped_information": rel.dropped,
-        "weights_above_half": int(np.sum(rel.weights > 0.5)),
-        "weights_above_1e-3": int(np.sum(rel.weights > 1e-3)),
-    }
-    if relaxation["relative_gap"] is not None and relaxation["relative_gap"] > 0.2:
-        warnings.append(
-            f"relaxation is loose: the chosen layout is {100 * relaxation['relative_gap']:.0f} % above the bound "
-            f"({relaxation['weights_above_1e-3']} candidates share the relaxed weight)"
-        )
-    baselines = {
-        "greedy": {"layout": g_layout.tolist(), "value": float(crit.value(g_layout))},
-        "relaxation_rounded": {"layout": rounded.tolist(), "value": float(crit.value(rounded))},
-        "improved_from": best_from,
-    }
-    if default_idx is not None and default_idx.size == count:
-        baselines["problem_layout"] = {"layout": default_idx.tolist(), "value": float(crit.value(default_idx))}
-        if crit.value(default_idx) < best_val:
-            warnings.append("the problem's own layout scores better than the design (local optimum of the swaps)")
+def _risk_of(crit: _Criteria, info: _Information, s: DesignSettings, default_idx, found: Search):
+    """The risk and the chosen layout's indices in it: for a linear criterion, the risk on the
+    layouts reported only (the chosen one, the starts, the problem's own)."""
+    best = found.best
+    if crit.risk is not None:
+        return crit.risk, np.asarray(best)
+    keep = [best, found.rounded, found.greedy] + ([default_idx] if default_idx is not None else [])
+    sub = np.unique(np.concatenate(keep))
+    risk = BayesRisk.build(info.sens, info.stack.take(sub), info.loads, info.q0, s.aggregate)
+    where = {int(c): k for k, c in enumerate(sub)}
+    return risk, np.array([where[int(c)] for c in best])
+
+
+def predictions(s, count, crit: _Criteria, info: _Information, risk, risk_index, best, warnings: list) -> dict:
+    """The chosen layout's predicted errors: the risk, its value per nominal load, the A criterion's
+    relative posterior std (and the lift's when it is the criterion); a warning when the risk is poor."""
+    sens, stack, q0, linear, kind = info.sens, info.stack, info.q0, crit.linear, crit.kind
     pred = {
         "risk_relative_load_error": float(risk.value(risk_index)),
         "risk_per_nominal": [float(v) for v in risk.per_nominal(risk.layout_sum(risk_index)[None], count)[0]],
         "a_relative_posterior_std": float(
-            linear.value(best) if kind == "a" else LinearCriterion.build("a", sens, stack, prior, q0).value(best)
+            linear.value(best) if kind == "a" else LinearCriterion.build("a", sens, stack, crit.prior, q0).value(best)
         ),
-        "nominal_loads": [P.description for P in loads],
+        "nominal_loads": [P.description for P in info.loads],
     }
     if kind == "lift":
         pred["lift_relative_posterior_std"] = float(linear.value(best))
@@ -373,11 +371,7 @@ def design_sensors(
             f"predicted mean load error {pred['risk_relative_load_error']:.2f}: {count} sensors resolve the "
             "nominal loads poorly (more sensors, or a load space that fits the edges)"
         )
-    timings["total"] = time.perf_counter() - t0
-    return DesignResult(
-        problem, s, cands, np.asarray(best), float(best_val), pred, relaxation, baselines, timings, warnings,
-        risk, sens, linear, risk_index,
-    )  # fmt: skip
+    return pred
 
 
 def predicted_error_field(result: DesignResult, nx: int = 57, ny: int = 29):

@@ -28,6 +28,7 @@ from functools import cached_property
 import numpy as np
 
 from wingopt.errors import InputError
+from wingopt.estimation.declaration import declaration_of
 from wingopt.fe import Cells
 from wingopt.membrane import MembraneModel, bubble
 
@@ -135,7 +136,7 @@ class ModalSensitivity:
         if s.modes > model.n:
             raise InputError(f"modes = {s.modes}: expected at most {model.n} for this mesh")
         modal = model.modal(s.modes)
-        dt = model.problem.identification.dt
+        dt = declaration_of(model.problem).dt
         disc = modal.discretize(dt)
         steps = int(round(s.t_end / dt))
         if steps < 2:
@@ -183,7 +184,7 @@ class ModalSensitivity:
     def initial_state(self, peak: float | None = None) -> np.ndarray:
         """Modal displacement of the protocol's initial bubble (``peak`` m; default the problem's)."""
         prob = self.model.problem
-        peak = prob.identification.initial_deflection if peak is None else peak
+        peak = declaration_of(prob).initial_deflection if peak is None else peak
         if peak == 0:
             peak = 0.01  # the protocol's bubble: the design needs an expected transient
         z0 = self.model.project(bubble(prob.width, prob.height, peak))

@@ -24,6 +24,7 @@ import numpy as np
 
 from wingopt.design.priors import edge_loads, leading_edge_suction, smooth_loads
 from wingopt.errors import InputError
+from wingopt.estimation.declaration import declaration_of
 from wingopt.estimation.mhe import MHESettings
 from wingopt.estimation.options import IdentifyOptions
 from wingopt.estimation.registry import resolve
@@ -150,7 +151,7 @@ def run_task(task: IdentifyTask, settings: MHESettings | None = None) -> dict:
     model = _estimator_model(prob, specs, task.nodes)
     sign = -1.0 if task.load == "consistency" else 1.0
     # The linear MHE as the registry runs it; no FvK cross-check (model_form): only the estimate counts.
-    options = IdentifyOptions(initial_load=sign * abs(prob.identification.initial_load), model_form=False)
+    options = IdentifyOptions(initial_load=sign * abs(declaration_of(prob).initial_load), model_form=False)
     res = run_record(resolve("mhe", "linear"), model, meas, options, settings=settings)
     space = model.space if res.load_space is None else res.load_space  # the result's own load basis
     err2 = integrate(

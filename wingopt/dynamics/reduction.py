@@ -289,6 +289,15 @@ def modes_below(system: SecondOrderSystem, band_hz: float, start: int = 8) -> in
         count = min(2 * count, top)
 
 
+def _band_error(system: SecondOrderSystem, red: ReducedModel, freqs: np.ndarray, H, MH) -> float:
+    """The largest relative M-norm error of ``red``'s response ``u -> z`` against the full one ``H`` on ``freqs``."""
+    # The reduced field is W X with W = [Phi, R] and X = [H_r; I].
+    W = np.hstack([red.basis, red.residual])
+    m = red.residual.shape[1]
+    X = np.concatenate([red.response(freqs), np.broadcast_to(np.eye(m), (len(freqs), m, m))], axis=1)
+    return float(_relative_error(H, MH, W, np.asarray(system.mass @ W), X).max())
+
+
 def reduce_system(
     system: SecondOrderSystem,
     *,
@@ -345,11 +354,7 @@ def reduce_system(
     history = []
     for r in [top] if n_modes is not None else range(1, top + 1):
         red = ReducedModel.from_basis(system, *reduced_basis(system, r, correction))
-        # The reduced field is W X with W = [Phi, R] and X = [H_r; I].
-        W = np.hstack([red.basis, red.residual])
-        m = b.shape[1]
-        X = np.concatenate([red.response(freqs), np.broadcast_to(np.eye(m), (len(freqs), m, m))], axis=1)
-        err = float(_relative_error(H, MH, W, np.asarray(system.mass @ W), X).max())
+        err = _band_error(system, red, freqs, H, MH)
         history.append((r, err))
         if err <= tol:
             break

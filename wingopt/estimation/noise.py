@@ -144,13 +144,13 @@ def noise_variance(measurements, problem_noise_std=None, rule: NoiseRule = JEKF_
     The precedence of :func:`resolve_noise_std` (measurements, problem file, estimate); a floor
     of ``1e-6 max_t |y_i|`` keeps ``R > 0`` on noise-free data.
     """
+    values, names = measurements.values, measurements.sensor_names
     std, source = resolve_noise_std(
-        measurements.values, measurements.sensor_names, None, measurements.noise_std, problem_noise_std, rule,
-        allow_zero=True,
-    )  # fmt: skip
+        values, names, measured=measurements.noise_std, problem=problem_noise_std, rule=rule, allow_zero=True
+    )
     if source == "estimated from the data":
         source = f"estimated (order-{rule.order} differences, {rule.statistic})"
-    scale = np.nanmax(np.abs(measurements.values), axis=0)
+    scale = np.nanmax(np.abs(values), axis=0)
     floor = _VARIANCE_FLOOR * np.where(np.isfinite(scale) & (scale > 0), scale, 1.0)
     if np.any(std < floor):
         source += " (floored)"

@@ -12,13 +12,14 @@ from __future__ import annotations
 import logging
 
 from wingopt.estimation.core.record_settings import LOAD_MODELS, MEMBRANE_MODELS, RecordSettings
+from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.result import IdentificationResult
 from wingopt.estimation.steady.estimator import is_steady, steady_identify
 from wingopt.estimation.transient.estimator import transient_identify
 from wingopt.measurements.series import Measurements
 from wingopt.membrane import MembraneModel
 
-__all__ = ["RecordSettings", "identify_record", "LOAD_MODELS", "MEMBRANE_MODELS"]
+__all__ = ["RecordSettings", "identify_record", "answered_by_steady_fit", "LOAD_MODELS", "MEMBRANE_MODELS"]
 
 log = logging.getLogger(__name__)
 
@@ -40,6 +41,8 @@ def identify_record(
     settings : RecordSettings, optional
         ``settings.record`` forces ``"steady"`` or ``"transient"``; ``"auto"`` (default) tests
         the record (:func:`~wingopt.estimation.steady.estimator.is_steady`) with the FvK model.
+        ``settings.declaration`` is filled here from ``model.problem`` when not given, once for
+        the steady and the transient fit.
     initial_load : float, optional
         The load the record starts under, when known.
 
@@ -48,7 +51,7 @@ def identify_record(
     IdentificationResult
         ``info["routing"]`` says which fit answered and why.
     """
-    s = settings or RecordSettings()
+    s = with_declaration(settings or RecordSettings(), model.problem)
     if s.record == "transient" or not (
         s.record == "steady" or (s.record == "auto" and s.membrane_model == "fvk" and is_steady(measurements.values))
     ):
@@ -62,3 +65,8 @@ def identify_record(
     )
     log.info(routing)
     return transient_identify(model, measurements, s, initial_load, routing=routing)
+
+
+def answered_by_steady_fit(result: IdentificationResult) -> bool:
+    """Whether the steady fit answered (a batch result, or a stream's steady refit)."""
+    return result.info.get("record") == "steady"

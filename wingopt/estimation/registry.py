@@ -151,9 +151,13 @@ REGISTRY: dict[tuple[str, str, bool], EstimatorSpec] = {
 
 
 def resolve(
-    method: str = "auto", model: str = "auto", *, stream: bool = False, simulated: str | None = None,
+    method: str = "auto",
+    model: str = "auto",
+    *,
+    stream: bool = False,
+    simulated: str | None = None,
     frames: bool = False,
-):  # fmt: skip
+):
     """The :class:`EstimatorSpec` of a method and a membrane (``auto`` resolved).
 
     ``simulated``: the truth physics of a simulated record (``None`` for measured data). ``auto``

@@ -4,9 +4,9 @@
 :class:`~wingopt.measurements.Measurements`; :func:`build_stream` builds a streaming one (``push``
 one sample at a time); :func:`build` puts either behind the one protocol. An estimator's settings
 are made here, once, by :func:`settings_for`: its settings dataclass (the registry row's) with the
-options its fields declare applied; an explicit settings object replaces the defaults the options
-start from. Each method has one runner (:data:`RECORD_RUNNERS`, :data:`STREAM_BUILDERS`): no
-method name is compared anywhere else.
+options its fields declare applied and the problem's declaration filled in; an explicit settings
+object replaces the defaults the options start from. Each method has one runner
+(:data:`RECORD_RUNNERS`, :data:`STREAM_BUILDERS`): no method name is compared anywhere else.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation import jekf
+from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.fullfield import fullfield_identify
 from wingopt.estimation.lambda_rules import resolve as resolve_rule
 from wingopt.estimation.mhe import mhe_identify
@@ -47,12 +48,17 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 
-def settings_for(spec: EstimatorSpec, options: IdentifyOptions | None = None, base=None):
+def settings_for(spec: EstimatorSpec, options: IdentifyOptions | None = None, base=None, *, problem=None):
     """The settings ``spec`` runs with: ``base`` (default: its settings dataclass's defaults) on the
-    row's membrane, with the options its settings declare applied."""
+    row's membrane, with the options its settings declare applied and, given the ``problem`` and
+    where the settings have a ``declaration``, the problem's ``[identification]`` in it
+    (:func:`~wingopt.estimation.declaration.with_declaration`: a ``base`` that carries one keeps it)."""
     settings = base if base is not None else spec.settings()
-    if any(f.name == "membrane_model" for f in dataclasses.fields(settings)):
+    names = {f.name for f in dataclasses.fields(settings)}
+    if "membrane_model" in names:
         settings = dataclasses.replace(settings, membrane_model=spec.model)
+    if problem is not None and "declaration" in names:
+        settings = with_declaration(settings, problem)
     return apply_options(settings, options if options is not None else IdentifyOptions())
 
 
@@ -69,7 +75,7 @@ def check_settings(spec: EstimatorSpec, settings) -> None:
 
 def _mhe(spec, model, meas, options, settings, truth, frames) -> IdentificationResult:
     p0 = options.initial_load
-    result = mhe_identify(model, meas, settings_for(spec, options, settings), initial_load=p0)
+    result = mhe_identify(model, meas, settings_for(spec, options, settings, problem=model.problem), initial_load=p0)
     result = check_mhe_result(model, meas, result)
     if result.info.get("model_adequate") is False and options.model_form is not False:
         result = model_form_band(model, meas, result, p0)
@@ -77,13 +83,14 @@ def _mhe(spec, model, meas, options, settings, truth, frames) -> IdentificationR
 
 
 def _batch(spec, model, meas, options, settings, truth, frames) -> IdentificationResult:
-    return identify_record(model, meas, settings_for(spec, options, settings), initial_load=options.initial_load)
+    s = settings_for(spec, options, settings, problem=model.problem)
+    return identify_record(model, meas, s, initial_load=options.initial_load)
 
 
 def _fullfield(spec, model, meas, options, settings, truth, frames) -> IdentificationResult:
     if frames is None:
         raise InputError(f"{spec.label}: no DIC frames given (wingopt identify --dic FRAMES)")
-    return fullfield_identify(model, frames, settings_for(spec, options, settings))
+    return fullfield_identify(model, frames, settings_for(spec, options, settings, problem=model.problem))
 
 
 def _jekf(spec, model, meas, options, settings, truth, frames) -> IdentificationResult:
@@ -160,9 +167,8 @@ def build(
 
 
 def _ekf_stream(spec: EstimatorSpec, model: MembraneModel, options: IdentifyOptions):
-    ekf = NonlinearStreamingEstimator(
-        model, settings_for(spec, options), noise_std=options.noise_std, initial_load=options.initial_load
-    )
+    s = settings_for(spec, options, problem=model.problem)
+    ekf = NonlinearStreamingEstimator(model, s, noise_std=options.noise_std, initial_load=options.initial_load)
     if spec.model != "fvk":
         return ekf
     batch = resolve("batch", "fvk")  # a steady stream's answer is the batch estimate of its record
@@ -171,7 +177,8 @@ def _ekf_stream(spec: EstimatorSpec, model: MembraneModel, options: IdentifyOpti
 
 
 def _mhe_stream(spec: EstimatorSpec, model: MembraneModel, options: IdentifyOptions):
-    return StreamingEstimator(model, settings_for(spec, options), options.noise_std, options.initial_load)
+    s = settings_for(spec, options, problem=model.problem)
+    return StreamingEstimator(model, s, options.noise_std, options.initial_load)
 
 
 STREAM_BUILDERS = {"mhe": _mhe_stream, "ekf": _ekf_stream}

@@ -42,6 +42,7 @@ from wingopt.errors import InputError, SolverError
 from wingopt.estimation.core.load_model import LoadShapes
 from wingopt.estimation.core.record_fit import levenberg_marquardt
 from wingopt.estimation.core.record_problem import ParameterPrior
+from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.steady.problem import SteadyData, SteadyProblem, starts, steady_data
 from wingopt.membrane.model import MembraneModel
 
@@ -383,17 +384,16 @@ def check_transient(
 
 def attach(info: dict, model: MembraneModel, t, values, settings, initial_load: float, steady: bool = True) -> None:
     """Run the checks of a route's record and record them in its ``info``: ``info["wiring"]`` and, for
-    each finding, a line of ``info["warnings"]`` (the answer itself is not changed). ``settings``: the
-    realistic estimator's (its load prior's scale ``kappa``, its parameter priors)."""
-    problem = model.problem
+    each finding, a line of ``info["warnings"]`` (the answer is not changed). ``settings``: the realistic
+    estimator's (``kappa``, the parameter priors, the ``declaration``'s leading edge; filled when ``None``)."""
+    s = with_declaration(settings, model.problem)
     try:
-        prior = ParameterPrior.from_problem(problem, settings.free, settings.prestrain_rel, settings.damping_rel)
-        le = problem.identification.leading_edge
-        edges = (le,) if le else ("x0", "x1")
+        prior = ParameterPrior.from_problem(model.problem, s.free, s.prestrain_rel, s.damping_rel, s.declaration)
+        edges = (s.declaration.leading_edge,) if s.declaration.leading_edge else ("x0", "x1")
         if steady:
-            rep = check_steady(model, t, values, prior, initial_load, settings.kappa, edges)
+            rep = check_steady(model, t, values, prior, initial_load, s.kappa, edges)
         else:
-            rep = check_transient(model, t, values, prior, initial_load, settings.kappa, edges)
+            rep = check_transient(model, t, values, prior, initial_load, s.kappa, edges)
     except _FAILURES as exc:
         rep = _skipped(f"the checks failed ({exc})")
     info["wiring"] = rep.as_dict()

@@ -322,8 +322,13 @@ def _finish(name, t, vals, line_numbers, sensor_names, ignored, channels, given)
             f"(typically 1e-4..1e-1); {units_hint(channels)}"
         )
     missing_rows = int(np.count_nonzero(np.isnan(vals).any(axis=1)))
-    meas = Measurements(t=grid_t, values=grid_vals, sensor_names=tuple(sensor_names), source=name,
-                        clock=clock.as_dict() if clock.jittered else None)  # fmt: skip
+    meas = Measurements(
+        t=grid_t,
+        values=grid_vals,
+        sensor_names=tuple(sensor_names),
+        source=name,
+        clock=clock.as_dict() if clock.jittered else None,
+    )
     report = CsvReport(
         name,
         int(t.size),

@@ -80,19 +80,35 @@ def read_dic_npz(path: str | Path, extent: tuple[float, float]) -> DICFrames:
     if nan_count:
         log.warning("%s: %d point values are NaN where marked valid: dropped", name, nan_count)
     frames = DICFrames(
-        s * np.asarray(data["x"], float).ravel(), s * np.asarray(data["y"], float).ravel(), t,
-        s * arrays["u"], s * arrays["v"], s * arrays["w"],
-        arrays.get("exx"), arrays.get("eyy"), arrays.get("exy"), valid,
-        str(data.get("source", name)), units, str(data["strain_reference"]), kind, report,
-    )  # fmt: skip
+        s * np.asarray(data["x"], float).ravel(),
+        s * np.asarray(data["y"], float).ravel(),
+        t,
+        s * arrays["u"],
+        s * arrays["v"],
+        s * arrays["w"],
+        arrays.get("exx"),
+        arrays.get("eyy"),
+        arrays.get("exy"),
+        valid,
+        str(data.get("source", name)),
+        units,
+        str(data["strain_reference"]),
+        kind,
+        report,
+    )
     check_plausible(frames, extent, name)
     return frames
 
 
 def read_dic(
-    source: str | Path, extent: tuple[float, float], *, mapping: DICMapping | None = None,
-    frame_rate: float | None = None, strain_reference: str = "prestrained", strain_kind: str | None = None,
-) -> DICFrames:  # fmt: skip
+    source: str | Path,
+    extent: tuple[float, float],
+    *,
+    mapping: DICMapping | None = None,
+    frame_rate: float | None = None,
+    strain_reference: str = "prestrained",
+    strain_kind: str | None = None,
+) -> DICFrames:
     """DIC frames from ``source``, whatever its layout: an ``.npz`` file (the plain layout, in the wing's
     frame), a directory (or glob) of DICe solution files ``*.txt``, or of plain CSV frames ``*.csv``.
 
@@ -122,9 +138,13 @@ def read_dic(
         raise DataFileError(f"{source}: both .txt (DICe) and .csv frame files: expected one layout per directory")
     if csv:
         return read_dic_csv(
-            csv, frame_rate, extent, units=mapping.unit, strain_reference=strain_reference,
+            csv,
+            frame_rate,
+            extent,
+            units=mapping.unit,
+            strain_reference=strain_reference,
             strain_kind=strain_kind or "surface",
-        )  # fmt: skip
+        )
     return read_dice(
         txt or source, frame_rate, mapping, extent, strain_reference=strain_reference, strain_kind=strain_kind
     )

@@ -47,9 +47,13 @@ __all__ = ["read_dice", "read_dic_csv", "DICE_FAILURE_FLAGS", "DICE_REQUIRED"]
 log = logging.getLogger(__name__)
 
 DICE_REQUIRED = (
-    "MODEL_COORDINATES_X", "MODEL_COORDINATES_Y",
-    "MODEL_DISPLACEMENT_X", "MODEL_DISPLACEMENT_Y", "MODEL_DISPLACEMENT_Z", "SIGMA",
-)  # fmt: skip
+    "MODEL_COORDINATES_X",
+    "MODEL_COORDINATES_Y",
+    "MODEL_DISPLACEMENT_X",
+    "MODEL_DISPLACEMENT_Y",
+    "MODEL_DISPLACEMENT_Z",
+    "SIGMA",
+)
 DICE_STRAINS = ("VSG_STRAIN_XX", "VSG_STRAIN_YY", "VSG_STRAIN_XY")
 DICE_FAILURE_FLAGS = frozenset({5, 7, 8, 9, 10, 11, 12, 13, 14, 16, 17, 19, 20, 21, 22, 23, 24, 25, 27, 28, 29, 30})
 """DICe ``Status_Flag`` values of a failed or skipped subset (``DICe.h``: INITIALIZE_FAILED = 5,
@@ -209,6 +213,51 @@ def _match_ids(fr: _Frame, ref: _Frame, tol: float) -> None:
 
 
 def _assemble(frames: list[_Frame], frame_rate, mapping, extent, source, ref_kind, kind, units) -> DICFrames:
+    rate = _checked_rate(frame_rate, ref_kind)
+    ref, nums, step = _ordered(frames)
+    all_nums = np.arange(nums[0], nums[-1] + 1, step)
+    missing_frames = tuple(int(n) for n in np.setdiff1d(all_nums, nums))
+    size = max(np.ptp(ref.X), np.ptp(ref.Y), 1e-300)
+    tol = 2e-4 * max(np.abs(ref.X).max(), np.abs(ref.Y).max(), size)
+    if ref.ids is None:
+        ref.ids = np.arange(ref.X.size)
+        for f in frames:
+            if f is not ref:
+                _match_ids(f, ref, tol)
+    pos = {int(i): j for j, i in enumerate(ref.ids)}
+    if len(pos) != ref.ids.size:
+        raise DataFileError(f"{ref.path}: repeated point ids (or coordinates): expected each point once")
+    F, P = all_nums.size, ref.ids.size
+    out = {k: np.full((F, P), np.nan) for k in ref.data}
+    valid = np.zeros((F, P), dtype=bool)
+    dropped, missing_points = Counter(), 0
+    for f in frames:
+        k = int((f.number - nums[0]) // step)
+        missing_points += _place(f, ref, pos, tol, out, valid[k], k, dropped)
+    if missing_points:
+        dropped["missing"] = missing_points
+    dropped = Counter({r: n for r, n in dropped.items() if n})
+    notes = []
+    if missing_frames:
+        notes.append(f"{len(missing_frames)} missing frame(s) kept as all-invalid frames: {list(missing_frames)[:10]}")
+        log.warning("%s: %s", source, notes[-1])
+    if dropped:
+        notes.append("dropped points: " + ", ".join(f"{r} {n}" for r, n in dropped.items()))
+        if dropped["missing"] or dropped["nan"]:
+            log.warning("%s: %s", source, notes[-1])
+    u, v, w = mapping.vectors(out["u"], out["v"], out["w"])
+    strains = mapping.strains(out["exx"], out["eyy"], out["exy"]) if "exx" in out else (None, None, None)
+    x, y = mapping.points(ref.X, ref.Y)
+    report = DICReadReport(source, len(frames), F, P, tuple(dropped.items()), missing_frames, tuple(notes))
+    t = (all_nums - all_nums[0]) / rate
+    kind = kind if "exx" in out else "none"
+    res = DICFrames(x, y, t, u, v, w, *strains, valid, source, units, ref_kind, kind, report)
+    check_plausible(res, extent, source)
+    return res
+
+
+def _checked_rate(frame_rate, ref_kind) -> float:
+    """The frame rate (Hz) as a positive number, once the strain reference is known too."""
     try:
         rate = float(frame_rate)
     except (TypeError, ValueError):
@@ -217,6 +266,12 @@ def _assemble(frames: list[_Frame], frame_rate, mapping, extent, source, ref_kin
         raise InputError(f"frame_rate = {frame_rate!r}: expected a positive number of frames per second (Hz)")
     if ref_kind not in STRAIN_REFERENCES:
         raise InputError(f"strain_reference = {ref_kind!r}: expected one of {', '.join(STRAIN_REFERENCES)}")
+    return rate
+
+
+def _ordered(frames: list[_Frame]) -> tuple[_Frame, np.ndarray, int]:
+    """Sort ``frames`` by number (in place): the grid's frame, the numbers and their step, once every
+    frame is known to be one of a series (no repeats, the same columns and reference image, one step)."""
     frames.sort(key=lambda f: f.number)
     nums = np.array([f.number for f in frames])
     dup = np.flatnonzero(np.diff(nums) == 0)
@@ -240,73 +295,47 @@ def _assemble(frames: list[_Frame], frame_rate, mapping, extent, source, ref_kin
         raise DataFileError(
             f"{frames[k].path}: frame {nums[k]} after {nums[k - 1]}: expected frame numbers in steps of {step}"
         )
-    all_nums = np.arange(nums[0], nums[-1] + 1, step)
-    missing_frames = tuple(int(n) for n in np.setdiff1d(all_nums, nums))
-    size = max(np.ptp(ref.X), np.ptp(ref.Y), 1e-300)
-    tol = 2e-4 * max(np.abs(ref.X).max(), np.abs(ref.Y).max(), size)
-    if ref.ids is None:
-        ref.ids = np.arange(ref.X.size)
-        for f in frames:
-            if f is not ref:
-                _match_ids(f, ref, tol)
-    pos = {int(i): j for j, i in enumerate(ref.ids)}
-    if len(pos) != ref.ids.size:
-        raise DataFileError(f"{ref.path}: repeated point ids (or coordinates): expected each point once")
-    F, P = all_nums.size, ref.ids.size
-    out = {k: np.full((F, P), np.nan) for k in ref.data}
-    valid = np.zeros((F, P), dtype=bool)
-    dropped, missing_points = Counter(), 0
-    for f in frames:
-        k = int((f.number - nums[0]) // step)
-        cols = np.array([pos.get(int(i), -1) for i in f.ids])
-        if np.any(cols < 0) or np.unique(cols).size != cols.size:
-            raise DataFileError(
-                f"{f.path}: {int(np.sum(cols < 0))} point(s) not in {ref.path} (or repeated): "
-                "expected the same grid in every frame (a frame from another test, or a grid that changed?)"
-            )
-        dev = max(np.abs(f.X - ref.X[cols]).max(), np.abs(f.Y - ref.Y[cols]).max())
-        if dev > tol:
-            raise DataFileError(
-                f"{f.path}: reference coordinates differ from {ref.path} by up to {dev:.4g} (DIC units): "
-                "expected the same grid in every frame (a frame from another test, or a grid that changed?)"
-            )
-        good = np.ones(cols.size, dtype=bool)
-        for reason, b in f.bad.items():
-            dropped[reason] += int(np.sum(b & good))
-            good &= ~b
-        finite = np.all([np.isfinite(a) for a in f.data.values()], axis=0)
-        dropped["nan"] += int(np.sum(good & ~finite))
-        good &= finite
-        missing_points += P - cols.size
-        for key, a in f.data.items():
-            out[key][k, cols] = a
-        valid[k, cols] = good
-    if missing_points:
-        dropped["missing"] = missing_points
-    dropped = Counter({r: n for r, n in dropped.items() if n})
-    notes = []
-    if missing_frames:
-        notes.append(f"{len(missing_frames)} missing frame(s) kept as all-invalid frames: {list(missing_frames)[:10]}")
-        log.warning("%s: %s", source, notes[-1])
-    if dropped:
-        notes.append("dropped points: " + ", ".join(f"{r} {n}" for r, n in dropped.items()))
-        if dropped["missing"] or dropped["nan"]:
-            log.warning("%s: %s", source, notes[-1])
-    u, v, w = mapping.vectors(out["u"], out["v"], out["w"])
-    strains = mapping.strains(out["exx"], out["eyy"], out["exy"]) if "exx" in out else (None, None, None)
-    x, y = mapping.points(ref.X, ref.Y)
-    report = DICReadReport(source, len(frames), F, P, tuple(dropped.items()), missing_frames, tuple(notes))
-    t = (all_nums - all_nums[0]) / rate
-    kind = kind if "exx" in out else "none"
-    res = DICFrames(x, y, t, u, v, w, *strains, valid, source, units, ref_kind, kind, report)
-    check_plausible(res, extent, source)
-    return res
+    return ref, nums, step
+
+
+def _place(f: _Frame, ref: _Frame, pos: dict, tol: float, out: dict, valid_k: np.ndarray, k: int, dropped) -> int:
+    """Put frame ``f``'s points into row ``k`` of ``out`` on the grid of ``ref`` (``valid_k``: the row's
+    valid points; ``dropped`` counts the invalid ones by reason); the grid's points ``f`` lacks."""
+    cols = np.array([pos.get(int(i), -1) for i in f.ids])
+    if np.any(cols < 0) or np.unique(cols).size != cols.size:
+        raise DataFileError(
+            f"{f.path}: {int(np.sum(cols < 0))} point(s) not in {ref.path} (or repeated): "
+            "expected the same grid in every frame (a frame from another test, or a grid that changed?)"
+        )
+    dev = max(np.abs(f.X - ref.X[cols]).max(), np.abs(f.Y - ref.Y[cols]).max())
+    if dev > tol:
+        raise DataFileError(
+            f"{f.path}: reference coordinates differ from {ref.path} by up to {dev:.4g} (DIC units): "
+            "expected the same grid in every frame (a frame from another test, or a grid that changed?)"
+        )
+    good = np.ones(cols.size, dtype=bool)
+    for reason, b in f.bad.items():
+        dropped[reason] += int(np.sum(b & good))
+        good &= ~b
+    finite = np.all([np.isfinite(a) for a in f.data.values()], axis=0)
+    dropped["nan"] += int(np.sum(good & ~finite))
+    good &= finite
+    for key, a in f.data.items():
+        out[key][k, cols] = a
+    valid_k[cols] = good
+    return ref.ids.size - cols.size
 
 
 def read_dice(
-    source, frame_rate: float, mapping: DICMapping, extent: tuple[float, float], *,
-    prefix: str = "DICe_solution", strain_reference: str = "prestrained", strain_kind: str | None = None,
-) -> DICFrames:  # fmt: skip
+    source,
+    frame_rate: float,
+    mapping: DICMapping,
+    extent: tuple[float, float],
+    *,
+    prefix: str = "DICe_solution",
+    strain_reference: str = "prestrained",
+    strain_kind: str | None = None,
+) -> DICFrames:
     """Read DICe solution files (a directory, a glob or a list of files) into :class:`DICFrames`.
 
     Parameters
@@ -331,9 +360,15 @@ def read_dice(
 
 
 def read_dic_csv(
-    source, frame_rate: float, extent: tuple[float, float], *, units: str = "m",
-    strain_reference: str = "prestrained", strain_kind: str = "surface", prefix: str = "frame",
-) -> DICFrames:  # fmt: skip
+    source,
+    frame_rate: float,
+    extent: tuple[float, float],
+    *,
+    units: str = "m",
+    strain_reference: str = "prestrained",
+    strain_kind: str = "surface",
+    prefix: str = "frame",
+) -> DICFrames:
     """Read the plain CSV-per-frame layout (:mod:`.dic`) in the wing's frame (``units`` m or mm)."""
     files = _list_files(source, f"{prefix}_*.csv")
     mapping = DICMapping(unit=units)

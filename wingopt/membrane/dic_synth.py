@@ -65,19 +65,32 @@ def membrane_fields(fvk, Z: np.ndarray, x: np.ndarray, y: np.ndarray) -> dict[st
         "exy_inplane": 0.5 * (uy + vx + ux * uy + vx * vy),
     }
     return {
-        "u": ev(UC, (0, 0)), "v": ev(VC, (0, 0)), "w": ev(Z, (0, 0)),
+        "u": ev(UC, (0, 0)),
+        "v": ev(VC, (0, 0)),
+        "w": ev(Z, (0, 0)),
         "exx": plane["exx_inplane"] + 0.5 * wx**2,
         "eyy": plane["eyy_inplane"] + 0.5 * wy**2,
         "exy": plane["exy_inplane"] + 0.5 * wx * wy,
-        "uc": UC, "vc": VC, **plane,
-    }  # fmt: skip
+        "uc": UC,
+        "vc": VC,
+        **plane,
+    }
 
 
 def synthesize_frames(
-    fvk, t: np.ndarray, Z: np.ndarray, *, grid: tuple[int, int] = (40, 20), points=None,
-    noise_displacement: float = 1e-5, noise_strain: float = 1e-4, missing: float = 0.02,
-    seed: int | None = 0, source: str = "synthetic FvK", strain_kind: str = "surface",
-) -> DICFrames:  # fmt: skip
+    fvk,
+    t: np.ndarray,
+    Z: np.ndarray,
+    *,
+    grid: tuple[int, int] = (40, 20),
+    points=None,
+    noise_displacement: float = 1e-5,
+    noise_strain: float = 1e-4,
+    missing: float = 0.02,
+    seed: int | None = 0,
+    source: str = "synthetic FvK",
+    strain_kind: str = "surface",
+) -> DICFrames:
     """DIC frames of the FvK membrane ``fvk`` along the deflection history ``Z`` (F, n) at times ``t``.
 
     Parameters

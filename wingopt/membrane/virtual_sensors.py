@@ -95,10 +95,52 @@ def _points_means(frames: DICFrames, values: np.ndarray, rects, gains, samples: 
     return out
 
 
+def _check_kind(frames: DICFrames, kind: str, method: str) -> None:
+    """Refuse a kind and method the frames cannot give (strains need surface strains on the prestrained state)."""
+    if kind not in KINDS or method not in METHODS:
+        raise InputError(f"kind = {kind!r}, method = {method!r}: expected kind in {KINDS} and method in {METHODS}")
+    if kind == "slope" and method != "fit":
+        raise InputError("kind = 'slope': expected method = 'fit' (slopes need a smooth fit of W)")
+    if kind == "slope":
+        return
+    if frames.strain_kind != "surface":
+        raise InputError(
+            f"{frames.source}: strain_kind = {frames.strain_kind!r}: kind = {kind!r} needs surface Lagrange "
+            "strains with the w terms (DICe's VSG strains are in-plane only); use kind = 'slope'"
+        )
+    if frames.strain_reference != "prestrained":
+        raise InputError(
+            f"{frames.source}: strain_reference = {frames.strain_reference!r}: kind = {kind!r} needs strains "
+            "referenced to the prestrained membrane; use kind = 'slope'"
+        )
+
+
+def _slope_values(frames: DICFrames, zero, specs, smoothing: float) -> tuple[np.ndarray, np.ndarray]:
+    """The sensors' outputs ``c^T C_i c`` on each frame's smooth fit of W (its noise bias removed), and their noise."""
+    fit = fit_frames(frames, frames.w, zero, smoothing)
+    C = [Ci.toarray() for Ci in StretchSensors.assemble(zero, specs).matrices]
+    CZ = [fit.coef @ Ci for Ci in C]  # rows c^T C_i
+    values = np.stack([np.einsum("fi,fi->f", fit.coef, cz) for cz in CZ], axis=1)
+    bias = np.array([fit.sigma**2 * np.sum(Ci * fit.cov_unit) for Ci in C])
+    values = values - bias[None, :]
+    noise = np.array(
+        [2 * fit.sigma * np.sqrt(np.nanmedian(np.einsum("fi,ij,fj->f", cz, fit.cov_unit, cz))) for cz in CZ]
+    )
+    log.info("virtual sensors (slope): W noise %.3g m, bias removed %s", fit.sigma, np.array2string(bias, precision=3))
+    return values, noise
+
+
 def virtual_sensors(
-    frames: DICFrames, problem, *, sensors=None, kind: str = "slope", method: str = "fit",
-    nodes: tuple[int, int] = (17, 9), smoothing: float = 1e-6, min_fraction: float = 0.5,
-) -> Measurements:  # fmt: skip
+    frames: DICFrames,
+    problem,
+    *,
+    sensors=None,
+    kind: str = "slope",
+    method: str = "fit",
+    nodes: tuple[int, int] = (17, 9),
+    smoothing: float = 1e-6,
+    min_fraction: float = 0.5,
+) -> Measurements:
     """Emulate stretch sensors from DIC frames (module docstring): one value per frame and sensor.
 
     Parameters
@@ -118,21 +160,7 @@ def virtual_sensors(
         ``t`` the frame times, NaN for a frame whose sensor region has too few valid points.
     """
     specs = tuple(problem.sensors if sensors is None else sensors)
-    if kind not in KINDS or method not in METHODS:
-        raise InputError(f"kind = {kind!r}, method = {method!r}: expected kind in {KINDS} and method in {METHODS}")
-    if kind == "slope" and method != "fit":
-        raise InputError("kind = 'slope': expected method = 'fit' (slopes need a smooth fit of W)")
-    if kind != "slope":
-        if frames.strain_kind != "surface":
-            raise InputError(
-                f"{frames.source}: strain_kind = {frames.strain_kind!r}: kind = {kind!r} needs surface Lagrange "
-                "strains with the w terms (DICe's VSG strains are in-plane only); use kind = 'slope'"
-            )
-        if frames.strain_reference != "prestrained":
-            raise InputError(
-                f"{frames.source}: strain_reference = {frames.strain_reference!r}: kind = {kind!r} needs strains "
-                "referenced to the prestrained membrane; use kind = 'slope'"
-            )
+    _check_kind(frames, kind, method)
     rects = [tuple(s.rect) for s in specs]
     gains = [s.gain for s in specs]
     counts, total = _region_counts(frames, rects)
@@ -145,18 +173,7 @@ def virtual_sensors(
     zero = membrane_space(W, H, nodes)
     noise = None
     if kind == "slope":
-        fit = fit_frames(frames, frames.w, zero, smoothing)
-        C = [Ci.toarray() for Ci in StretchSensors.assemble(zero, specs).matrices]
-        CZ = [fit.coef @ Ci for Ci in C]  # rows c^T C_i
-        values = np.stack([np.einsum("fi,fi->f", fit.coef, cz) for cz in CZ], axis=1)
-        bias = np.array([fit.sigma**2 * np.sum(Ci * fit.cov_unit) for Ci in C])
-        values = values - bias[None, :]
-        noise = np.array(
-            [2 * fit.sigma * np.sqrt(np.nanmedian(np.einsum("fi,ij,fj->f", cz, fit.cov_unit, cz))) for cz in CZ]
-        )
-        log.info(
-            "virtual sensors (slope): W noise %.3g m, bias removed %s", fit.sigma, np.array2string(bias, precision=3)
-        )
+        values, noise = _slope_values(frames, zero, specs, smoothing)
     else:
         trace = frames.exx + frames.eyy
         if method == "fit":

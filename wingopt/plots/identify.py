@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from wingopt.estimation.registry import FRAME_METHODS
 from wingopt.plots import pyplot as _pyplot
 from wingopt.plots import save as _save
 
@@ -263,18 +264,24 @@ def plot_identification(tmp: Path, run, X, Y, P, S=None, title: str | None = Non
     lift, band = result.reported_lift
     written = {}
     first = None
-    if result.method == "mhe" and "window" in result.info:
+    if "window" in result.info:  # a windowed estimator (the MHE): mark its first window's end
         first = float(result.t[min(result.info["window"], result.t.size) - 1] - result.t[0])
     truth = None if case is None else case.load(X, Y)
     plot_field_band(
-        tmp / "load_field.png", X, Y, P, S, lift=lift, lift_std=band, sensors=run.problem.sensors, truth=truth,
+        tmp / "load_field.png",
+        X,
+        Y,
+        P,
+        S,
+        lift=lift,
+        lift_std=band,
+        sensors=run.problem.sensors,
+        truth=truth,
         title=title,
-    )  # fmt: skip
+    )
     written["load_field.png"] = "the field behind the reported lift (load.csv), its 1-sigma band, the sensors"
     true_lift = None if case is None else case.true_lift
-    plot_lift(
-        tmp / "lift.png", result.t, result.lift, result.lift_std, true_lift, title, first, reported=(lift, band)
-    )  # fmt: skip
+    plot_lift(tmp / "lift.png", result.t, result.lift, result.lift_std, true_lift, title, first, reported=(lift, band))
     written["lift.png"] = "the lift history (lift.csv) with its band, and the reported lift ± its band"
     if "segments_t_s" in result.info.get("adequacy", {}):
         from wingopt.plots.misfit import plot_misfit
@@ -286,7 +293,7 @@ def plot_identification(tmp: Path, run, X, Y, P, S=None, title: str | None = Non
 
         plot_sensor_means(tmp / "misfit.png", result.info, run.model.problem.sensor_names, title)
         written["misfit.png"] = "measured vs fitted: each sensor's mean and the static fit"
-    elif result.method == "fullfield" and _sensor_fit(run) is not None:  # DIC: the frames' virtual sensors
+    elif result.method in FRAME_METHODS and _sensor_fit(run) is not None:  # DIC: the frames' virtual sensors
         from wingopt.plots.misfit import plot_sensor_fit
 
         t, measured, fitted = _sensor_fit(run)

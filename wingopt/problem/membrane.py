@@ -185,6 +185,37 @@ def from_table(root: Table, name: str) -> MembraneProblem:
     height = geo.number("height", positive=True, unit="m")
     geo.finish()
 
+    material = _material(root)
+
+    mesh = root.table("mesh")
+    nodes = mesh.integers("nodes", 2, lo=4)
+    mesh.finish()
+
+    sensors = _sensors(root, width, height)
+    names = [s.name for s in sensors]
+
+    identification = _identification(root, len(sensors))
+    dic = dic_from_table(root.table("dic")) if root.has("dic") else None
+    has = root.has("measurements")
+    channels, acquisition = measurements_and_acquisition(root.table("measurements"), names) if has else (None, None)
+    root.finish()
+    return MembraneProblem(
+        width=width,
+        height=height,
+        material=material,
+        nodes=nodes,
+        sensors=tuple(sensors),
+        identification=IdentificationSettings(**identification),
+        name=name,
+        source=root.source,
+        dic=dic,
+        measurements=channels,
+        acquisition=acquisition,
+    )
+
+
+def _material(root: Table) -> MembraneMaterial:
+    """The ``[material]`` table: the membrane's density, elasticity, thickness, prestrain and damping."""
     mat = root.table("material")
     material = MembraneMaterial(
         density=mat.number("density", positive=True, unit="kg/m^3"),
@@ -197,11 +228,11 @@ def from_table(root: Table, name: str) -> MembraneProblem:
         viscous=mat.number("viscous", 5.0, nonnegative=True, unit="Pa s/m"),
     )
     mat.finish()
+    return material
 
-    mesh = root.table("mesh")
-    nodes = mesh.integers("nodes", 2, lo=4)
-    mesh.finish()
 
+def _sensors(root: Table, width: float, height: float) -> list[StretchSensorSpec]:
+    """The ``[[sensors]]`` tables: named (uniquely, not as the CSV's time column) rectangles on the wing."""
     sensors = []
     tables = root.tables("sensors", [])
     if len(tables) > MAX_SENSORS:
@@ -224,7 +255,12 @@ def from_table(root: Table, name: str) -> MembraneProblem:
     dup = next((n for n in names if names.count(n) > 1), None)
     if dup is not None:
         raise root.error("sensors", dup, "unique sensor names")
+    return sensors
 
+
+def _identification(root: Table, n_sensors: int) -> dict:
+    """The ``[identification]`` table's fields of :class:`IdentificationSettings` (the rig's declaration:
+    sample period, sign prior and initial shape, free parameters and their priors, a calibration, noise)."""
     ident = root.table("identification", {})
     dt = ident.number("dt", 1.0e-3, positive=True, unit="s")
     initial_load = ident.number("initial_load", 200.0, unit="Pa")
@@ -253,41 +289,25 @@ def from_table(root: Table, name: str) -> MembraneProblem:
     noise = None
     if ident.has("noise_std"):
         if isinstance(ident.peek("noise_std"), list):
-            noise = ident.numbers("noise_std", len(sensors), positive=True)
+            noise = ident.numbers("noise_std", n_sensors, positive=True)
         else:
             noise = (ident.number("noise_std", positive=True),)
     ident.finish()
-    dic = dic_from_table(root.table("dic")) if root.has("dic") else None
-    has = root.has("measurements")
-    channels, acquisition = measurements_and_acquisition(root.table("measurements"), names) if has else (None, None)
-    root.finish()
-    return MembraneProblem(
-        width=width,
-        height=height,
-        material=material,
-        nodes=nodes,
-        sensors=tuple(sensors),
-        identification=IdentificationSettings(
-            dt=dt,
-            initial_load=initial_load,
-            noise_std=noise,
-            initial_deflection=initial_deflection,
-            free_parameters=tuple(dict.fromkeys(free)),
-            prestrain_prior_rel=prestrain_rel,
-            damping_prior_rel=damping_rel,
-            prestrain=None if calibrated is None else tuple(calibrated),
-            prestrain_std=None if calibrated_std is None else tuple(calibrated_std),
-            damping=damping,
-            damping_std=damping_std,
-            prestrain_correlation=correlation,
-            calibration=calibration,
-            calibration_misfit=calibration_misfit,
-            leading_edge=leading_edge,
-            pressure_prior=pressure_prior,
-        ),
-        name=name,
-        source=root.source,
-        dic=dic,
-        measurements=channels,
-        acquisition=acquisition,
+    return dict(
+        dt=dt,
+        initial_load=initial_load,
+        noise_std=noise,
+        initial_deflection=initial_deflection,
+        free_parameters=tuple(dict.fromkeys(free)),
+        prestrain_prior_rel=prestrain_rel,
+        damping_prior_rel=damping_rel,
+        prestrain=None if calibrated is None else tuple(calibrated),
+        prestrain_std=None if calibrated_std is None else tuple(calibrated_std),
+        damping=damping,
+        damping_std=damping_std,
+        prestrain_correlation=correlation,
+        calibration=calibration,
+        calibration_misfit=calibration_misfit,
+        leading_edge=leading_edge,
+        pressure_prior=pressure_prior,
     )

@@ -53,9 +53,17 @@ def open_in_chromium(html_file: Path, screenshot: Path, size: tuple[int, int] = 
         raise FileNotFoundError("no chromium binary found (install Debian's 'chromium' package)")
     with tempfile.TemporaryDirectory() as profile:
         proc = subprocess.run(
-            [exe, *_FLAGS, f"--user-data-dir={profile}", f"--screenshot={Path(screenshot).resolve()}",
-             f"--window-size={size[0]},{size[1]}", Path(html_file).resolve().as_uri()],
-            capture_output=True, text=True, timeout=120,
-        )  # fmt: skip
+            [
+                exe,
+                *_FLAGS,
+                f"--user-data-dir={profile}",
+                f"--screenshot={Path(screenshot).resolve()}",
+                f"--window-size={size[0]},{size[1]}",
+                Path(html_file).resolve().as_uri(),
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
     console = tuple(m.group(2) for m in map(_CONSOLE.search, proc.stderr.splitlines()) if m)
     return BrowserCheck(console, Path(screenshot), proc.returncode)

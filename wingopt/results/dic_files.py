@@ -86,19 +86,39 @@ def write_dic_csv(frames: DICFrames, directory, *, prefix: str = "frame", first_
 
 
 DICE_COLUMNS = (
-    "SUBSET_ID", "COORDINATE_X", "COORDINATE_Y", "DISPLACEMENT_X", "DISPLACEMENT_Y",
-    "MODEL_COORDINATES_X", "MODEL_COORDINATES_Y", "MODEL_COORDINATES_Z",
-    "MODEL_DISPLACEMENT_X", "MODEL_DISPLACEMENT_Y", "MODEL_DISPLACEMENT_Z",
-    "VSG_STRAIN_XX", "VSG_STRAIN_YY", "VSG_STRAIN_XY", "SIGMA", "GAMMA", "MATCH", "STATUS_FLAG",
-)  # fmt: skip
+    "SUBSET_ID",
+    "COORDINATE_X",
+    "COORDINATE_Y",
+    "DISPLACEMENT_X",
+    "DISPLACEMENT_Y",
+    "MODEL_COORDINATES_X",
+    "MODEL_COORDINATES_Y",
+    "MODEL_COORDINATES_Z",
+    "MODEL_DISPLACEMENT_X",
+    "MODEL_DISPLACEMENT_Y",
+    "MODEL_DISPLACEMENT_Z",
+    "VSG_STRAIN_XX",
+    "VSG_STRAIN_YY",
+    "VSG_STRAIN_XY",
+    "SIGMA",
+    "GAMMA",
+    "MATCH",
+    "STATUS_FLAG",
+)
 """The columns :func:`write_dice` writes: those of a stereo DICe run with VSG strains."""
 
 
 def write_dice(
-    frames: DICFrames, directory, mapping: DICMapping | None = None, *,
-    prefix: str = "DICe_solution", first_frame: int = 0, pixel_size: float = 1e-4, delimiter: str = ",",
+    frames: DICFrames,
+    directory,
+    mapping: DICMapping | None = None,
+    *,
+    prefix: str = "DICe_solution",
+    first_frame: int = 0,
+    pixel_size: float = 1e-4,
+    delimiter: str = ",",
     frames_to_write: range | None = None,
-) -> list[Path]:  # fmt: skip
+) -> list[Path]:
     """Write ``frames`` as DICe solution files ``<prefix>_<frame>.txt`` (one per frame, atomically).
 
     The layout follows DICe's writer (``***`` information block, header row, ``%4.4E`` values);
@@ -136,10 +156,28 @@ def write_dice(
     paths = []
     for k in range(F) if frames_to_write is None else frames_to_write:
         ok = v[k]
-        cols = np.column_stack([
-            ids, X * px, Y * px, U[k] * px, V[k] * px, X, Y, np.zeros(P), U[k], V[k], W[k], E[0][k], E[1][k], E[2][k],
-            np.where(ok, 5e-3, -1.0), np.where(ok, 1e-3, -1.0), np.where(ok, 0.0, -1.0), np.where(ok, 0.0, 8.0),
-        ])  # fmt: skip
+        cols = np.column_stack(
+            [
+                ids,
+                X * px,
+                Y * px,
+                U[k] * px,
+                V[k] * px,
+                X,
+                Y,
+                np.zeros(P),
+                U[k],
+                V[k],
+                W[k],
+                E[0][k],
+                E[1][k],
+                E[2][k],
+                np.where(ok, 5e-3, -1.0),
+                np.where(ok, 1e-3, -1.0),
+                np.where(ok, 0.0, -1.0),
+                np.where(ok, 0.0, 8.0),
+            ]
+        )
         body = "".join(fmt % tuple(row) for row in cols)
         paths.append(_text(d / f"{prefix}_{first_frame + k:0{digits}d}.txt", head + body))
     log.debug("wrote %d DICe frame files to %s", len(paths), d)

@@ -12,6 +12,8 @@ import logging
 from pathlib import Path
 
 from wingopt.errors import MissingExtraError
+from wingopt.estimation.records import answered_by_steady_fit
+from wingopt.estimation.registry import FRAME_METHODS
 from wingopt.results.export import field_dataset, write_netcdf
 from wingopt.results.run_report import identify_report
 
@@ -24,11 +26,12 @@ FIELD_FILE = "field.nc"
 
 def route_name(result) -> str:
     """The route's own name: ``full field (DIC)``, ``stream``, ``steady`` or ``transient``."""
-    if result.method == "fullfield":
+    if result.method in FRAME_METHODS:
         return "full field (DIC)"
+    steady = answered_by_steady_fit(result)
     if "phases" in result.info:  # the streaming protocol's result
-        return "stream (steady refit)" if result.info.get("record") == "steady" else "stream"
-    return "steady" if result.info.get("record") == "steady" else "transient"
+        return "stream (steady refit)" if steady else "stream"
+    return "steady" if steady else "transient"
 
 
 def source_name(run) -> str:

@@ -262,8 +262,11 @@ def keep_killed_rows(work: Path, target: Path, pid: str) -> Path | None:
     os.replace(work, kept)
     log.warning(
         "a killed run at %s left %d estimate row(s) in its work directory: kept in %s (wingopt does not delete "
-        "it; remove it when done)", target, rows, kept,
-    )  # fmt: skip
+        "it; remove it when done)",
+        target,
+        rows,
+        kept,
+    )
     return kept
 
 

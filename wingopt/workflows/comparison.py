@@ -14,9 +14,7 @@ from __future__ import annotations
 
 import json
 import time
-import warnings
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import InitVar, dataclass
 from pathlib import Path
 
 from wingopt.errors import InputError, SolverError
@@ -27,6 +25,7 @@ from wingopt.estimation.runners import settings_for
 from wingopt.problem import load_problem
 from wingopt.problem.membrane import MembraneProblem
 from wingopt.results import OwnedDirectory, check_new_file, check_writable, write_text_atomic
+from wingopt.workflows.comparison_preset import JEKF_MODES, LOADS, ComparisonPreset
 from wingopt.workflows.comparison_report import (
     checklist_markdown,
     consistency_markdown,
@@ -56,12 +55,6 @@ from wingopt.workflows.sweep.run import run_records
 
 __all__ = ["comparison_study", "sign_and_band_study", "consistency_study", "ComparisonPreset", "run_comparison"]
 __all__ += ["LOADS", "JEKF_MODES", "write_overlays"]
-
-LOADS = ("L1", "L2", "L3")
-"""The load cases of the comparison."""
-
-JEKF_MODES = 60
-"""The JEKFs' default order in ``compare`` (the demo's): their lowest 60 of the estimator's modes."""
 
 
 def comparison_study(
@@ -140,98 +133,6 @@ def consistency_study(
     return rows
 
 
-@dataclass(frozen=True)
-class ComparisonPreset:
-    """What ``wingopt compare`` runs (the defaults are the command's).
-
-    ``seeds`` noise seeds from ``first_seed`` for the table (``table=False``: none) with
-    ``methods``, the MHE's oracle lambda unless ``oracle=False``; the MHE's sign and band study over
-    ``sign_seeds`` seeds at 5 % noise; the consistency study; the MHE's load space and state prior
-    (:class:`~wingopt.estimation.options.IdentifyOptions`); the truth's mesh; the JEKFs' order
-    ``jekf_modes`` (their lowest modes only, :data:`JEKF_MODES` by default, as the demo's; ``None``:
-    every mode, the exact filter, ~10x the CPU time). ``noise_fractions``: the noise levels as
-    FRACTIONS of each sensor's peak (0.01 = 1 %); the former keyword ``noises`` warns (:class:`FutureWarning`).
-    """
-
-    loads: tuple[str, ...] = LOADS
-    noise_fractions: tuple[float, ...] = (0.01, 0.05)
-    seeds: int = 5
-    first_seed: int = 0
-    methods: tuple[str, ...] = METHODS
-    table: bool = True
-    oracle: bool = True
-    sign_seeds: int = 0
-    consistency: bool = False
-    load_space: str = "fixed"
-    state_prior: str = "1"
-    truth_mesh: tuple[int, int] = TRUTH_NODES
-    jekf_modes: int | None = JEKF_MODES
-    noises: InitVar[tuple[float, ...] | None] = None
-
-    def __post_init__(self, noises: tuple[float, ...] | None) -> None:
-        from wingopt.resources import LIMITS, check_count
-
-        if noises is not None:
-            msg = "ComparisonPreset(noises=...) is deprecated, use noise_fractions (the same fractions)"
-            warnings.warn(msg, FutureWarning, stacklevel=3)
-            object.__setattr__(self, "noise_fractions", tuple(noises))
-        if self.jekf_modes is not None and (
-            isinstance(self.jekf_modes, bool) or not isinstance(self.jekf_modes, int) or self.jekf_modes < 1
-        ):
-            raise InputError(f"jekf-order = {self.jekf_modes!r}: expected a positive number of modes or 'full'")
-        if self.jekf_modes is not None:
-            check_count("jekf-order", self.jekf_modes, "modes")
-
-        for name, given, words in (
-            ("loads", self.loads, ", ".join(LOADS)),
-            ("methods", self.methods, ", ".join(METHODS)),
-            ("noise", self.noise_fractions, "noise levels in percent, e.g. 1,5"),
-        ):
-            if self.table and not given:
-                raise InputError(f"{name} = {','.join(map(str, given))!r}: expected at least one ({words})")
-        if not self.table and not self.sign_seeds and not self.consistency:
-            raise InputError(
-                "table = no: nothing left to run; give --n-sign-seeds N or --consistency, or keep the table"
-            )
-        for name, given, known in (("loads", self.loads, LOADS), ("methods", self.methods, METHODS)):
-            for v in given:
-                if v not in known:
-                    raise InputError(f"{name}: {v!r}: expected some of {', '.join(known)}")
-        if self.seeds < 1 or self.first_seed < 0 or self.sign_seeds < 0:
-            raise InputError("seeds: expected a positive integer (first-seed, sign-seeds: non-negative)")
-        check_count("seeds", self.seeds)
-        check_count("sign-seeds", self.sign_seeds, "seeds")
-        tasks = len(self.loads) * len(self.noise_fractions) * self.seeds * len(self.methods) * (1 if self.table else 0)
-        tasks += len(self.loads) * self.sign_seeds
-        if tasks > LIMITS["tasks"]:
-            raise InputError(
-                f"seeds = {self.seeds}: {tasks} study tasks (loads x noise x seeds x methods), more than the limit of "
-                f"{LIMITS['tasks']}; split the study (--first-seed)"
-            )
-
-    def runs(self) -> tuple[list[tuple], list[tuple]]:
-        """The table's runs and the sign study's, as (load, noise, seed, method)."""
-        seeds = range(self.first_seed, self.first_seed + self.seeds)
-        noises = self.noise_fractions
-        table = [(ld, nz, sd, m) for ld in self.loads for nz in noises for sd in seeds for m in self.methods]
-        sign = [(ld, 0.05, sd, "mhe") for ld in self.loads for sd in range(self.sign_seeds)]
-        return (table if self.table else []), sign
-
-    def title(self, problem: MembraneProblem) -> str:
-        """The heading of the comparison table."""
-        last = self.first_seed + self.seeds - 1
-        seeds = f" ({self.first_seed}–{last})" if self.first_seed else ""
-        prior = "" if self.state_prior == "1" else ", state prior " + self.state_prior
-        order = ""
-        if any(m.startswith("jekf") for m in self.methods):
-            order = ", JEKF " + ("exact (every mode)" if self.jekf_modes is None else f"{self.jekf_modes} modes")
-        return (
-            f"### Final errors, mean (min–max) over {self.seeds} noise seeds{seeds}; "
-            f"truth {self.truth_mesh[0]}x{self.truth_mesh[1]}, "
-            f"estimator {problem.nodes[0]}x{problem.nodes[1]}, MHE load space {self.load_space}{prior}{order}"
-        )
-
-
 def _keyed(rec: dict) -> dict:
     """A record of the compare before the study engine carries no key: derive it from its fields."""
     if "key" not in rec and "load" in rec:
@@ -265,8 +166,6 @@ def run_comparison(
     before any work. Returns the report (the summary) and the markdown text; a
     :class:`~wingopt.errors.SolverError` if a task failed.
     """
-    from wingopt import resources
-
     prob = load_problem(problem)
     if prob.kind != "membrane":
         raise InputError(f"problem = {str(problem)!r}: compare needs a membrane problem")
@@ -274,24 +173,10 @@ def run_comparison(
     check_writable(out, inputs=[*inputs, ("--doc", doc)])
     if doc:
         check_new_file(doc, "doc", force=force, inputs=inputs)
-    samples = int(round(1.0 / prob.identification.dt)) + 1
-    for method in preset.methods or ("mhe",):
-        knobs = {"truth": f"--truth-mesh {preset.truth_mesh[0]}x{preset.truth_mesh[1]}"}
-        resources.check(
-            resources.estimate_identify(
-                prob.nodes, samples, truth_nodes=preset.truth_mesh, method=method, knobs=knobs,
-                jekf_modes=preset.jekf_modes,
-            )
-        )  # fmt: skip
+    _check_size(prob, preset)
     owner = OwnedDirectory(out, inputs=[*inputs, ("--doc", doc)])
     out = owner.path
-    rec_path = out / "records.jsonl"
-    if resume and rec_path.exists() and owner.owns("records.jsonl"):
-        old = read_records(rec_path)
-        if any("key" not in r for r in old):  # a pre-engine file: give its records their keys
-            text = "".join(json.dumps(_keyed(r)) + "\n" for r in old)
-            owner.write("records.jsonl", lambda tmp: tmp.write_text(text), log=True)
-    records = RecordLog(rec_path, fresh=not resume, owner=owner)
+    records = _record_log(owner, resume)
     options = IdentifyOptions(load_space=preset.load_space, state_prior=preset.state_prior)
     settings = settings_for(resolve("mhe"), options)
     truth = preset.truth_mesh
@@ -305,7 +190,7 @@ def run_comparison(
     )
     sign_tasks, shared2 = protocol_tasks(prob, sign_runs, settings, truth, False, jekf_modes=preset.jekf_modes)
     cons_tasks, shared3 = consistency_tasks(prob, settings=settings, truth_nodes=truth)
-    cache = out / "consistency.json"
+    cache = out / _CONSISTENCY_FILE
     cons_rows = json.loads(cache.read_text()) if resume and cache.exists() and owner.owns(cache.name) else None
     if not preset.consistency or cons_rows is not None:
         cons_tasks = []
@@ -324,8 +209,50 @@ def run_comparison(
             "see records.jsonl",
         )
 
-    sections = []
     report: dict = {"problem": prob.name, "truth_mesh": list(truth), "mesh": list(prob.nodes)}
+    sections = _report(report, preset, prob, owner, by, table_tasks, sign_tasks, cons_tasks, cons_rows)
+    report["wall_s"] = time.perf_counter() - t0
+    sections.insert(0, checklist_markdown(report))
+    text = "\n\n".join(s for s in sections if s) + "\n"
+    owner.write_json("summary.json", report)
+    owner.write_text("comparison.md", text)
+    if doc:
+        write_text_atomic(doc, doc_header(str(problem), preset) + text, what="doc", force=force, inputs=inputs)
+    return report, text
+
+
+_CONSISTENCY_FILE = "consistency.json"
+"""The consistency study's rows, kept in the output directory (a resumed study does not rerun it)."""
+
+
+def _check_size(prob: MembraneProblem, preset: ComparisonPreset) -> None:
+    """Refuse, before any work, a comparison whose estimators would not fit (memory, time)."""
+    from wingopt import resources
+
+    samples = int(round(1.0 / prob.identification.dt)) + 1
+    knobs = {"truth": f"--truth-mesh {preset.truth_mesh[0]}x{preset.truth_mesh[1]}"}
+    for method in preset.methods or ("mhe",):
+        need = resources.estimate_identify(
+            prob.nodes, samples, truth_nodes=preset.truth_mesh, method=method, knobs=knobs, jekf_modes=preset.jekf_modes
+        )
+        resources.check(need)
+
+
+def _record_log(owner: OwnedDirectory, resume: bool) -> RecordLog:
+    """``records.jsonl`` of the study: kept on ``resume`` (a pre-engine file's records given their keys)."""
+    rec_path = owner.path / "records.jsonl"
+    if resume and rec_path.exists() and owner.owns("records.jsonl"):
+        old = read_records(rec_path)
+        if any("key" not in r for r in old):  # a pre-engine file: give its records their keys
+            text = "".join(json.dumps(_keyed(r)) + "\n" for r in old)
+            owner.write("records.jsonl", lambda tmp: tmp.write_text(text), log=True)
+    return RecordLog(rec_path, fresh=not resume, owner=owner)
+
+
+def _report(report, preset, prob, owner, by, table_tasks, sign_tasks, cons_tasks, cons_rows) -> list[str]:
+    """The report's sections (table, oracle gap, sign and band, consistency, overlays) from the records
+    ``by`` key, each also into ``report``; the consistency rows are cached in ``consistency.json``."""
+    sections = []
     if preset.table:
         summ = summarize([record_from_dict(by[t.key]) for t in table_tasks])
         report["comparison"] = summ
@@ -338,7 +265,7 @@ def run_comparison(
     if preset.consistency:
         if cons_rows is None:
             cons_rows = consistency_rows([by[t.key] for t in cons_tasks])
-            owner.write_json(cache.name, cons_rows)
+            owner.write_json(_CONSISTENCY_FILE, cons_rows)
         report["consistency"] = cons_rows
         sections.append(consistency_markdown(cons_rows))
     if preset.table:
@@ -348,14 +275,7 @@ def run_comparison(
                 "Lift histories of the MHE and the JEKFs with their 1-sigma bands and the true lift (lowest noise, "
                 f"first seed), in the output directory: {', '.join(report['overlays'])}."
             )
-    report["wall_s"] = time.perf_counter() - t0
-    sections.insert(0, checklist_markdown(report))
-    text = "\n\n".join(s for s in sections if s) + "\n"
-    owner.write_json("summary.json", report)
-    owner.write_text("comparison.md", text)
-    if doc:
-        write_text_atomic(doc, doc_header(str(problem), preset) + text, what="doc", force=force, inputs=inputs)
-    return report, text
+    return sections
 
 
 OVERLAY_NAMES = {"mhe": "MHE", "jekf-tuned": "tuned JEKF", "jekf-seed": "seed JEKF"}

@@ -7,12 +7,10 @@ checklist of issue 5's targets against the measured values.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
-if TYPE_CHECKING:  # the preset is a type hint only: the workflow imports this module
-    from wingopt.workflows.comparison import ComparisonPreset
+from wingopt.workflows.comparison_preset import ComparisonPreset
+from wingopt.workflows.studies import SUBJECT
 
 __all__ = ["MHE_LIMITS", "checklist_markdown", "oracle_markdown", "sign_markdown", "consistency_markdown", "doc_header"]
 
@@ -57,7 +55,7 @@ def checklist_markdown(report: dict) -> str:
         lines.append(f"| {item} | {target} | {measured} | {'yes' if ok else 'NO'} |")
 
     rows = report.get("comparison", [])
-    mhe = {(r["load"], r["noise"]): r for r in rows if r["method"] == "mhe"}
+    mhe = {(r["load"], r["noise"]): r for r in rows if r["method"] == SUBJECT}
     for (load, noise), limit in MHE_LIMITS.items():
         if (load, noise) in mhe:
             v = mhe[(load, noise)]["load_error"]["mean"]
@@ -66,7 +64,7 @@ def checklist_markdown(report: dict) -> str:
         if ("L3", noise) in mhe:
             v = mhe[("L3", noise)]["load_error"]["mean"]
             add(f"MHE mean load error L3 {100 * noise:g} % (fixed edges)", "<= 0.35", f"{v:.4f}", v <= 0.35)
-    others = {(r["load"], r["noise"], r["method"]): r for r in rows if r["method"] != "mhe"}
+    others = {(r["load"], r["noise"], r["method"]): r for r in rows if r["method"] != SUBJECT}
     for (load, noise), r in sorted(mhe.items()):
         rivals = [o for (ld, nz, _), o in others.items() if ld == load and nz == noise]
         if rivals:
@@ -104,7 +102,7 @@ def checklist_markdown(report: dict) -> str:
 
 
 def oracle_markdown(summary) -> str:
-    rows = [r for r in summary if r["method"] == "mhe" and "oracle_load_error_mean" in r]
+    rows = [r for r in summary if r["method"] == SUBJECT and "oracle_load_error_mean" in r]
     if not rows:
         return ""
     lines = [

@@ -83,11 +83,20 @@ def real_section(rep: Report, tmp: Path, summary: dict, cfg) -> None:
         "datum near 1 means the data fit the model; a misfit flag widens the band."
     )
     rep.table(
-        ["estimator", "lift (true) N", "lift error", "band", "covers", "chi2/datum", "adequate", "field error",
-         "wall (s)"],
+        [
+            "estimator",
+            "lift (true) N",
+            "lift error",
+            "band",
+            "covers",
+            "chi2/datum",
+            "adequate",
+            "field error",
+            "wall (s)",
+        ],
         real_rows(summary),
         "Final lift and relative L2 load error on the real membrane",
-    )  # fmt: skip
+    )
     fvk = summary["real_membrane"].get("fvk", {})
     if fvk.get("parameters"):
         par, std, true = fvk["parameters"], fvk.get("parameters_std", {}), fvk.get("true_parameters", {})
@@ -101,7 +110,10 @@ def real_section(rep: Report, tmp: Path, summary: dict, cfg) -> None:
         )
     for model in REAL_MODELS:
         d = tmp / "real-membrane" / model
-        for name, cap in (("lift.png", "lift history (1-sigma band)"), ("misfit.png", "misfit per segment"),
-                          ("load_field.png", "estimated vs true load")):  # fmt: skip
+        for name, cap in (
+            ("lift.png", "lift history (1-sigma band)"),
+            ("misfit.png", "misfit per segment"),
+            ("load_field.png", "estimated vs true load"),
+        ):
             if (d / name).exists():
                 rep.figure(d / name, f"real membrane, {model}: {cap}")

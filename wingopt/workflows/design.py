@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from wingopt.design import DesignResult, DesignSettings, InformationSettings, design_sensors, predicted_error_field
-from wingopt.design.engine import MAX_COUNT, STAGES
+from wingopt.design.engine import STAGES, check_sensor_count
 from wingopt.design.rerank import MonteCarloSettings, adopt, rerank
 from wingopt.errors import InputError
 from wingopt.plots.design import plot_layout
@@ -159,8 +159,7 @@ def design_layout(
     prob = load_problem(problem) if isinstance(problem, (str, Path)) else problem
     if prob.kind != "membrane":
         raise InputError(f"problem = {str(problem)!r}: design-sensors needs a membrane problem, got {prob.kind!r}")
-    if isinstance(count, int) and not isinstance(count, bool) and count > MAX_COUNT:  # before any stage line
-        raise InputError(f"count = {count}: more than the limit of {MAX_COUNT} sensors to design")
+    check_sensor_count(count)  # before any stage line
     if progress is True:
         progress = DesignProgress(f"{count} sensors, criterion {s.criterion}")
     try:

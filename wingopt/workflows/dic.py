@@ -47,9 +47,13 @@ def read_frames(problem, source: str | Path | DICFrames) -> DICFrames:
         return source
     d = problem.dic or DICSettings()
     return read_dic(
-        source, (problem.width, problem.height), mapping=d.mapping, frame_rate=d.frame_rate,
-        strain_reference=d.strain_reference, strain_kind=d.strain_kind,
-    )  # fmt: skip
+        source,
+        (problem.width, problem.height),
+        mapping=d.mapping,
+        frame_rate=d.frame_rate,
+        strain_reference=d.strain_reference,
+        strain_kind=d.strain_kind,
+    )
 
 
 def first_shape(frames: DICFrames, model: MembraneModel) -> tuple[int, np.ndarray]:
@@ -59,10 +63,14 @@ def first_shape(frames: DICFrames, model: MembraneModel) -> tuple[int, np.ndarra
         raise InputError(f"{frames.source or 'DIC frames'}: no frame has half its points valid")
     k = int(np.argmax(head))
     one = dataclasses.replace(
-        frames, t=frames.t[k : k + 1], valid=frames.valid[k : k + 1],
-        **{f: None if getattr(frames, f) is None else getattr(frames, f)[k : k + 1]
-           for f in ("u", "v", "w", "exx", "eyy", "exy")},
-    )  # fmt: skip
+        frames,
+        t=frames.t[k : k + 1],
+        valid=frames.valid[k : k + 1],
+        **{
+            f: None if getattr(frames, f) is None else getattr(frames, f)[k : k + 1]
+            for f in ("u", "v", "w", "exx", "eyy", "exy")
+        },
+    )
     return k, fit_frames(one, one.w, model.space).coef[0]
 
 
@@ -107,12 +115,17 @@ class DICSensorsRun:
                 "t_s": float(self.frames.t[self.shape_frame]),
                 "peak_m": self.peak,
                 "mesh": list(self.problem.nodes),
-            },  # fmt: skip
+            },
         }
 
     def summary(self) -> dict:
-        return {"problem": self.problem.name, "dic": self.report(), "sensors": list(self.measurements.sensor_names),
-                "samples": int(self.measurements.count), "wall_s": self.wall_s}  # fmt: skip
+        return {
+            "problem": self.problem.name,
+            "dic": self.report(),
+            "sensors": list(self.measurements.sensor_names),
+            "samples": int(self.measurements.count),
+            "wall_s": self.wall_s,
+        }
 
 
 def dic_sensors(problem, frames, *, kind: str = "slope", method: str = "fit") -> DICSensorsRun:
@@ -143,24 +156,26 @@ def write_dic_sensors_outputs(run: DICSensorsRun, out_dir: str | Path) -> Path:
     X, Y = np.meshgrid(xs, ys)
     W = run.model.field(run.shape)(X, Y)
     with ResultDirectory(out_dir) as tmp:
-        write_csv(tmp / "sensors.csv", ["t", *m.sensor_names], (np.concatenate([[t], row]) for t, row in
-                                                                 zip(m.t, m.values)))  # fmt: skip
+        write_csv(
+            tmp / "sensors.csv", ["t", *m.sensor_names], (np.concatenate([[t], row]) for t, row in zip(m.t, m.values))
+        )
         write_csv(tmp / "initial_shape.csv", ["x", "y", "w_m"], zip(X.ravel(), Y.ravel(), W.ravel()))
         write_json(tmp / "summary.json", to_jsonable(run.summary()))
     return Path(out_dir)
 
 
-def dic_record(problem, frames, route: str) -> tuple[Any, DICFrames, Measurements, dict]:
+def dic_record(problem, frames, full_field: bool) -> tuple[Any, DICFrames, Measurements, dict]:
     """``identify --dic``: the problem (the first frame's signed peak as its prior initial deflection,
     unless the file states one), the frames, their virtual sensors (slope route) and the report.
 
-    ``route`` is ``"fullfield"`` (the frames themselves are the data) or ``"sensors"``.
+    ``full_field``: the frames themselves are the data (the full-field estimator); otherwise their
+    virtual sensors are.
     """
     run = dic_sensors(problem, frames)
     problem, ident = run.problem, run.problem.identification
     report = run.report()
-    report["route"] = "full field (every point's deflection)" if route == "fullfield" else report["route"]
-    if route == "sensors" and ident.initial_deflection == 0:
+    report["route"] = "full field (every point's deflection)" if full_field else report["route"]
+    if not full_field and ident.initial_deflection == 0:
         peak = run.peak
         load = abs(ident.initial_load) * (1.0 if peak >= 0 else -1.0)
         problem = dataclasses.replace(

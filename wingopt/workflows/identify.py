@@ -195,12 +195,11 @@ def identify(
     source : SimulatedCase, MeasuredRecord or DICRecord, optional
         The data (:mod:`wingopt.workflows.sources`); or one of the shorthands ``load``, ``data``, ``dic``.
     load : {"L1", "L2", "L3", "consistency", "LE"}, optional
-        Simulate the protocol with this load: ``SimulatedCase(load, **simulated)``. Only a simulated
-        case takes the options ``noise_percent`` (PERCENT of each sensor's peak output, as
-        ``--noise``; default 1), ``seed`` (0), ``truth`` (``"linear"``, ``"berger"``, ``"fvk"``),
-        ``truth_nodes`` (49x25; ``None``: the seed's same-mesh protocol), ``truth_prestrain``
-        ``(ex, ey)``, ``truth_damping`` (a factor), ``t_end`` (1 s) and ``gust``
-        (:class:`~wingopt.membrane.Gust`); with ``data`` or ``dic`` they are refused.
+        Simulate the protocol with this load, ``SimulatedCase(load, **simulated)``, whose options only a simulated
+        case takes (refused with ``data`` or ``dic``): ``noise_percent`` (PERCENT of each sensor's peak output, as
+        ``--noise``; default 1), ``seed`` (0), ``truth`` (``"linear"``, ``"berger"``, ``"fvk"``), ``truth_nodes``
+        (49x25; ``None``: the seed's same-mesh protocol), ``truth_prestrain`` ``(ex, ey)``, ``truth_damping`` (a
+        factor), ``t_end`` (1 s) and ``gust`` (:class:`~wingopt.membrane.Gust`).
     data, channels : path, Measurements or array; ChannelMap, optional
         Measured record instead of ``load``: a CSV file (``t`` + one column per sensor, or a DAQ's columns,
         gains, offsets by ``channels``, default the problem's ``[measurements]``; recorded in ``data.channels``),
@@ -218,25 +217,33 @@ def identify(
     nodes : (int, int), optional
         Estimator mesh (default: the problem's).
     max_memory : float, optional
-        Refuse (``InputError``, before any work) a run estimated to need more bytes than this
-        (default: the memory the machine has available); see :mod:`wingopt.resources`.
+        Refuse (``InputError``, before any work) a run estimated to need more bytes than this (default: the
+        memory the machine has available); see :mod:`wingopt.resources`.
     settings : MHESettings or RecordSettings, optional
         Advanced: the estimator's settings to start from (the options are applied on top).
     initial_load, noise_std, lam :
-        Shorthands for the same fields of ``options``: the sign prior (Pa), the sensor noise std
-        (sensor units; default: estimated from the data) and the lambda choice.
+        Shorthands for the same fields of ``options``: the sign prior (Pa), the sensor noise std (sensor units;
+        default: estimated from the data) and the lambda choice.
     acquisition : Acquisition or str, optional
         How the DAQ sampled the record (a kind, e.g. ``"delta-sigma"``): overrides the problem's
         ``[measurements] acquisition`` (:mod:`wingopt.measurements.acquisition`).
     noise : float, optional
-        No longer accepted (it was a fraction, the command line's a percentage): an ``InputError`` names
-        ``noise_percent`` (simulated noise) and ``noise_std`` (the sensors' noise).
+        No longer accepted (a fraction; ``--noise`` is a percentage): refused, naming ``noise_percent``, ``noise_std``.
 
     Returns
     -------
     IdentifyRun
         The estimate, the measurements, the truth (simulated records) and the summary.
     """
+    shorthand = {"load": load, "data": data, "dic": dic, "channels": channels, **simulated}
+    problem, source = _problem_and_source(problem, source, noise, acquisition, shorthand)
+    spec, opts = _estimator(method, model, source, options, settings, max_memory, initial_load, noise_std, lam)
+    record = _read(problem if nodes is None else problem.with_mesh(nodes), source, spec, opts, max_memory)
+    return _estimate(record, spec, record.options, settings)
+
+
+def _problem_and_source(problem, source, noise, acquisition, shorthand: dict) -> tuple:
+    """The membrane problem (with its DAQ's ``acquisition``) and the one source of data, once checked."""
     if noise is not None:
         raise InputError(
             f"noise = {noise!r}: ambiguous unit; give noise_percent (simulated noise, 1 = 1 % of each sensor's "
@@ -246,11 +253,16 @@ def identify(
     if acquisition is not None:  # the DAQ's filter, as [measurements] acquisition declares it
         problem = replace(problem, acquisition=Acquisition.from_value(acquisition))
     if source is None:
-        source = data_source(load=load, data=data, dic=dic, channels=channels, **simulated)
-    elif any(v is not None for v in (load, data, dic, channels, *simulated.values())):
+        source = data_source(**shorthand)
+    elif any(v is not None for v in shorthand.values()):
         raise InputError("identify: give the data once, as source= or as load=/data=/dic= and their options")
     elif not isinstance(source, (SimulatedCase, MeasuredRecord, DICRecord)):
         raise InputError(f"source = {source!r}: expected a SimulatedCase, MeasuredRecord or DICRecord")
+    return problem, source
+
+
+def _estimator(method, model, source, options, settings, max_memory, initial_load, noise_std, lam) -> tuple:
+    """The registry's estimator of ``method`` and ``model`` for ``source``, and its checked options."""
     if not isinstance(method, str) or not isinstance(model, str):
         raise InputError(f"method = {method!r}, model = {model!r}: expected names (see wingopt.estimation.registry)")
     check_number("max_memory", max_memory, positive=True, allow_none=True)
@@ -259,10 +271,7 @@ def identify(
     spec = resolve(method, model, simulated=simulated_truth, frames=isinstance(source, DICRecord))
     check_options(spec, opts)
     check_settings(spec, settings)
-    if nodes is not None:
-        problem = problem.with_mesh(nodes)
-    record = _read(problem, source, spec, opts, max_memory)
-    return _estimate(record, spec, record.options, settings)
+    return spec, opts
 
 
 def calibration_checks(problem) -> list[str]:
@@ -370,8 +379,10 @@ def write_identify_outputs(run: IdentifyRun, out_dir: str | Path, plots: bool = 
     P, S = mf(X, Y), mf.std(X, Y)
     read = [("--data", (run.data_report or {}).get("file")), ("--dic", (run.data_report or {}).get("frames_source"))]
     inputs = [("--data", (run.data_report or {}).get("file")), ("problem", getattr(problem, "source", None))]
-    run.outputs = {"provenance": provenance([*read, ("problem", getattr(problem, "source", None))]),
-                   "problem_file": problem_record(problem)}  # fmt: skip
+    run.outputs = {
+        "provenance": provenance([*read, ("problem", getattr(problem, "source", None))]),
+        "problem_file": problem_record(problem),
+    }
     progress.info("writing the outputs%s (the estimate took %s)", " and figures" * plots, fmt_duration(run.wall_s))
     with ResultDirectory(out_dir, inputs=inputs) as tmp:
         summary = to_jsonable(run.summary())

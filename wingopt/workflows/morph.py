@@ -208,10 +208,8 @@ def morph(
         Duration (s).
     nodes : (int, int), optional
         Mesh (default: the problem's).
-    sensor_noise : float
-        Standard deviation of the patch-sensor noise (sensor units, m).
-    seed : int
-        Noise seed.
+    sensor_noise, seed : float, int
+        Standard deviation of the patch-sensor noise (sensor units, m), and the noise's seed.
     period : float
         Control period (s), default 10 ms.
     plant : {"auto", "dense", "modal"}
@@ -231,10 +229,34 @@ def morph(
     Returns
     -------
     MorphResult
-        The closed-loop run, its target, limits and timing; :meth:`MorphResult.summary` is the
-        spec §7 summary.
+        The closed-loop run, its target, limits and timing; :meth:`MorphResult.summary` is the spec §7 summary.
     """
     t0 = time.perf_counter()
+    factory = _checked_request(problem, shape, method, t_end, period, sensor_noise, vmin, vmax, seed)
+    nodes = None if nodes is None else check_nodes(nodes)
+    mesh = nodes or (model.problem.nodes if model is not None else problem.nodes)
+    resources.check(resources.estimate_morph(mesh, t_end, period, horizon=_horizon(options)), max_memory)
+    model = PlateModel.from_problem(problem, nodes) if model is None else model
+    limits = resolve_limits(problem, method, vmin, vmax, model.n_inputs)
+    target = model.target(shape)
+    if plant_model is None:
+        plant_model = build_plant_model(problem, plant_problem, plant_scale, nodes)
+    actuator = build_actuator(actuator, (plant_model or model).problem, model.n_inputs)
+    controller = factory(model, target, vmin=limits.lower, vmax=limits.upper, period=period, **options)
+    plant_kw = {"plant": plant, "plant_model": plant_model, "actuator": actuator, "sensor_bias": sensor_bias}
+    cl = simulate_closed_loop(
+        model, controller, target, t_end=t_end, sensor_noise=sensor_noise, seed=seed, limits=limits, **plant_kw
+    )
+    extras = dict(getattr(controller, "extras", {}) or {})
+    extras.update(plant_extras(model, plant_model, target, limits, cl, actuator, sensor_bias))
+    wall = time.perf_counter() - t0
+    log.info("morph %s/%s: shape error %.4f in %.2f s", shape, method, cl.final_shape_error, wall)
+    lo, hi = limits.scalar("lower"), limits.scalar("upper")
+    return MorphResult(method, shape, model, target, cl, wall, lo, hi, float(t_end), dict(options), extras)
+
+
+def _checked_request(problem, shape, method, t_end, period, sensor_noise, vmin, vmax, seed):
+    """The method's controller factory, once the plate, the shape, the numbers and the method are checked."""
     if getattr(problem, "kind", None) != "plate":
         raise InputError(f"problem: morph needs a plate problem, got kind {getattr(problem, 'kind', None)!r}")
     if not isinstance(shape, str) or shape not in SHAPES:
@@ -245,30 +267,7 @@ def morph(
         raise InputError(f"problem {problem.name!r}: no [[patches]]: morphing needs piezo patch pairs as actuators")
     if not isinstance(method, str):
         raise InputError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
-    factory = load_factory(method)
-    if nodes is not None:
-        nodes = check_nodes(nodes)
-    horizon = _horizon(options)
-    mesh = nodes or (model.problem.nodes if model is not None else problem.nodes)
-    resources.check(resources.estimate_morph(mesh, t_end, period, horizon=horizon), max_memory)
-    if model is None:
-        model = PlateModel.from_problem(problem, nodes)
-    limits = resolve_limits(problem, method, vmin, vmax, model.n_inputs)
-    lo, hi = limits.scalar("lower"), limits.scalar("upper")
-    target = model.target(shape)
-    if plant_model is None:
-        plant_model = build_plant_model(problem, plant_problem, plant_scale, nodes)
-    actuator = build_actuator(actuator, (plant_model or model).problem, model.n_inputs)
-    controller = factory(model, target, vmin=limits.lower, vmax=limits.upper, period=period, **options)
-    cl = simulate_closed_loop(
-        model, controller, target, t_end=t_end, sensor_noise=sensor_noise, seed=seed, limits=limits, plant=plant,
-        plant_model=plant_model, actuator=actuator, sensor_bias=sensor_bias,
-    )  # fmt: skip
-    extras = dict(getattr(controller, "extras", {}) or {})
-    extras.update(plant_extras(model, plant_model, target, limits, cl, actuator, sensor_bias))
-    wall = time.perf_counter() - t0
-    log.info("morph %s/%s: shape error %.4f in %.2f s", shape, method, cl.final_shape_error, wall)
-    return MorphResult(method, shape, model, target, cl, wall, lo, hi, float(t_end), dict(options), extras)
+    return load_factory(method)
 
 
 def check_morph_numbers(*, t_end, period, sensor_noise, vmin=None, vmax=None) -> None:
@@ -378,10 +377,8 @@ def morph_to_directory(
         raise InputError(f"problem = {str(problem)!r}: morph needs a plate problem, got kind {prob.kind!r}")
     load_factory(method)  # an unknown method fails before anything is built
     t_end, period = kwargs.get("t_end", 2.0), kwargs.get("period", DEFAULT_PERIOD)
-    check_morph_numbers(
-        t_end=t_end, period=period, sensor_noise=kwargs.get("sensor_noise", 0.0), vmin=kwargs.get("vmin"),
-        vmax=kwargs.get("vmax"),
-    )  # fmt: skip
+    noise, vmin, vmax = kwargs.get("sensor_noise", 0.0), kwargs.get("vmin"), kwargs.get("vmax")
+    check_morph_numbers(t_end=t_end, period=period, sensor_noise=noise, vmin=vmin, vmax=vmax)
     horizon = _horizon(kwargs)
     resources.check(resources.estimate_morph(nodes or prob.nodes, t_end, period, horizon=horizon), max_memory)
     model = PlateModel.from_problem(prob, nodes)

@@ -153,9 +153,20 @@ def plant_record(model: PlateModel, case: PlantCase, shapes=SHAPES, controllers=
             opts = dict(CONTROLLERS[name])
             method = opts.pop("method")
             run = morph(
-                problem, shape, method, model=model, plant_model=plant, actuator=act, sensor_bias=bias,
-                sensor_noise=case.sensor_noise, seed=case.seed, t_end=t_end, vmin=lo, vmax=hi, **opts,
-            )  # fmt: skip
+                problem,
+                shape,
+                method,
+                model=model,
+                plant_model=plant,
+                actuator=act,
+                sensor_bias=bias,
+                sensor_noise=case.sensor_noise,
+                seed=case.seed,
+                t_end=t_end,
+                vmin=lo,
+                vmax=hi,
+                **opts,
+            )
             s = run.summary()
             best = s["plant_static_optimum_error"]
             cl = run.closed_loop

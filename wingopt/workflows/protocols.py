@@ -115,8 +115,9 @@ def simulate_case(
         truth_nodes = check_nodes(truth_nodes, "truth_nodes")
     check_number("t_end", t_end, positive=True)
     check_number("noise_fraction", noise_fraction, lo=0.0, hi=1.0)
-    key = (problem, load, noise_fraction, seed, truth_nodes, t_end, truth, prestrain, damping, gust, start, dt)
-    key += (substeps,)
+    case = (problem, load, noise_fraction, seed, truth_nodes, t_end)
+    case += (truth, prestrain, damping, gust, start, dt, substeps)  # in _simulate's order
+    key = case
     try:
         hash(key)
     except TypeError:  # a load or gust that is not hashable: simulated afresh
@@ -125,8 +126,7 @@ def simulate_case(
         key = None
     rec = _RECENT.get(key) if key is not None else None
     if rec is None:
-        rec = _simulate(problem, load, noise_fraction, seed, truth_nodes, t_end, truth, prestrain, damping, gust,
-                        start, dt, substeps)  # fmt: skip
+        rec = _simulate(*case)
         if key is not None:
             _RECENT.clear()  # one record kept: the runs of one case follow each other (demo, studies)
             _RECENT[key] = rec

@@ -170,7 +170,7 @@ class DICRecord:
     frames: Any
 
     def read(self, problem, options: IdentifyOptions, full_field: bool = True) -> SourceRecord:
-        problem, frames, meas, report = dic_record(problem, self.frames, "fullfield" if full_field else "sensors")
+        problem, frames, meas, report = dic_record(problem, self.frames, full_field)
         meas = meas if options.noise_std is None else _with_noise_std(meas, options.noise_std)
         return SourceRecord(problem, meas, frames=frames, report=report, options=options)
 

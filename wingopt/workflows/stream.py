@@ -22,10 +22,9 @@ from pathlib import Path
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation import sanity
-from wingopt.measurements.clock import RunningClock, jitter_note
+from wingopt.measurements.clock import RunningClock
 from wingopt.measurements.lines import LineSource
-from wingopt.status import RunStatus
+from wingopt.workflows.stream_summary import describe, summarise
 
 __all__ = ["COLUMNS", "LatencyStats", "follow"]
 
@@ -105,8 +104,6 @@ def follow(
     dict
         ``samples``, ``lift_N``, ``lift_std_N``, ``stopped``, ``latency``, ``warnings``, ...
     """
-    from wingopt.estimation.options import IdentifyOptions
-    from wingopt.estimation.registry import resolve
     from wingopt.estimation.runners import build
     from wingopt.measurements.csv_stream import CsvRowParser
     from wingopt.membrane import MembraneModel
@@ -115,6 +112,39 @@ def follow(
     from wingopt.results.live import LiveCsv
 
     problem = as_problem(problem, "membrane")
+    source, spec, options, stop = _checked(source, spec, options, poll, idle_timeout, stop, on_estimate)
+    inputs = [("--follow", source)] + [("problem", getattr(problem, "source", None))]
+    writer = ResultDirectory(out, inputs=inputs)  # checked before any work
+    check_stream_size(problem)
+    est = build(spec, MembraneModel.from_problem(problem), options, keep=False)
+    method = f"{spec.method}-stream"
+    name = source or "<stdin>"
+    channels = channels if channels is not None else problem.measurements
+    parser = CsvRowParser(problem.sensor_names, name, channels, warm_up=RunningClock.WARM_UP)
+    t_start = time.perf_counter()
+    lines = LineSource(source, poll, idle_timeout, stop)
+    with writer as tmp, LiveCsv(tmp / "lift.csv", COLUMNS) as live:
+        log.info("streaming estimates appended to %s", tmp / "lift.csv")
+        push = _Push(est, live, problem.sensor_names, on_estimate)
+        failure = _feed(lines, parser, push, stop)
+        live.close()
+        steady, failure = _finish(est, failure, lines)
+        summary = summarise(est, parser, lines, push, name, problem, live.rows, steady)
+        mapped = parser if channels is not None else None
+        describe(summary, problem, (push.peak, push.peak_sensor), method, spec, options, mapped)
+        summary["wall_s"] = time.perf_counter() - t_start
+        write_json(tmp / "summary.json", to_jsonable(summary))
+        writer.commit()
+    if failure is not None:
+        raise _as_stream_error(failure, method, live.rows, writer.target)
+    return summary
+
+
+def _checked(source, spec, options, poll, idle_timeout, stop, on_estimate) -> tuple:
+    """``follow``'s arguments once checked, with their defaults: ``(source, spec, options, stop)``."""
+    from wingopt.estimation.options import IdentifyOptions
+    from wingopt.estimation.registry import resolve
+
     check_stream_settings(poll, idle_timeout)
     if source is not None:
         source = os.fspath(source) if isinstance(source, os.PathLike) else source
@@ -134,92 +164,71 @@ def follow(
     options = IdentifyOptions() if options is None else options
     if not isinstance(options, IdentifyOptions):
         raise InputError(f"options = {type(options).__name__}: expected wingopt.estimation.options.IdentifyOptions")
-    stop = {} if stop is None else stop
-    inputs = [("--follow", source)] + [("problem", getattr(problem, "source", None))]
-    writer = ResultDirectory(out, inputs=inputs)  # checked before any work
-    check_stream_size(problem)
-    est = build(spec, MembraneModel.from_problem(problem), options, keep=False)
-    method = f"{spec.method}-stream"
-    name = source or "<stdin>"
-    channels = channels if channels is not None else problem.measurements
-    parser = CsvRowParser(problem.sensor_names, name, channels, warm_up=RunningClock.WARM_UP)
-    cpu, wall = LatencyStats(), LatencyStats()
-    bad, first_bad = 0, None
-    t_start = time.perf_counter()
-    lines = LineSource(source, poll, idle_timeout, stop)
-    failure = None
-    peak: list = [0.0, ""]  # largest stretch reading so far, and its sensor (the units check)
-    with writer as tmp, LiveCsv(tmp / "lift.csv", COLUMNS) as live:
-        log.info("streaming estimates appended to %s", tmp / "lift.csv")
-        try:
+    return source, spec, options, ({} if stop is None else stop)
 
-            def push(t, y) -> None:
-                nonlocal bad, first_bad
-                ay = np.abs(np.asarray(y, dtype=float))
-                if np.isfinite(ay).any() and np.nanmax(ay) > peak[0]:
-                    j = int(np.nanargmax(ay))
-                    peak[:] = [float(ay[j]), problem.sensor_names[j]]
-                c0, w0 = time.thread_time(), time.perf_counter()
-                e = est.push(t, y)
-                cpu.add(time.thread_time() - c0)
-                wall.add(time.perf_counter() - w0)
-                row = (e.t, e.lift, e.lift_std, e.chi2_per_datum, int(e.adequate), e.phase)
-                live.append(row)
-                if not e.adequate and e.phase == "tracking":
-                    bad += 1
-                    first_bad = e.t if first_bad is None else first_bad
-                if on_estimate is not None:
-                    on_estimate(e.k, row)
 
-            for line in lines:
-                if lines.take_restart():
-                    parser.new_file()
-                for t, y in parser.feed(line):
-                    push(t, y)
-                if parser.ended:
-                    lines.reason = "end marker"
-                    break
-                if stop.get("signal"):
-                    lines.reason = stop["signal"]
-                    break
-            for t, y in parser.flush():  # a record shorter than the clock's warm-up
+class _Push:
+    """One sample into the estimator: its estimate appended to ``lift.csv``, its latency timed, the
+    inadequate samples counted and the largest stretch reading kept (the units check)."""
+
+    def __init__(self, est, live, sensor_names, on_estimate) -> None:
+        self.est, self.live, self.sensor_names, self.on_estimate = est, live, sensor_names, on_estimate
+        self.cpu, self.wall = LatencyStats(), LatencyStats()
+        self.bad, self.first_bad = 0, None
+        self.peak, self.peak_sensor = 0.0, ""
+
+    def __call__(self, t, y) -> None:
+        ay = np.abs(np.asarray(y, dtype=float))
+        if np.isfinite(ay).any() and np.nanmax(ay) > self.peak:
+            j = int(np.nanargmax(ay))
+            self.peak, self.peak_sensor = float(ay[j]), self.sensor_names[j]
+        c0, w0 = time.thread_time(), time.perf_counter()
+        e = self.est.push(t, y)
+        self.cpu.add(time.thread_time() - c0)
+        self.wall.add(time.perf_counter() - w0)
+        row = (e.t, e.lift, e.lift_std, e.chi2_per_datum, int(e.adequate), e.phase)
+        self.live.append(row)
+        if not e.adequate and e.phase == "tracking":
+            self.bad += 1
+            self.first_bad = e.t if self.first_bad is None else self.first_bad
+        if self.on_estimate is not None:
+            self.on_estimate(e.k, row)
+
+
+def _feed(lines, parser, push: _Push, stop: dict) -> BaseException | None:
+    """Push every sample of the stream until it stops; what stopped it when it was an error."""
+    try:
+        for line in lines:
+            if lines.take_restart():
+                parser.new_file()
+            for t, y in parser.feed(line):
                 push(t, y)
-        except BaseException as exc:  # noqa: BLE001 - whatever stops the stream, the record so far is kept
-            # A bad row, a numerical failure, an interrupt: the estimates so far (hours of them,
-            # maybe) are written with the summary, then the error is raised.
-            failure = exc
-            lines.reason = _stopped_by(exc)
-        live.close()
-        steady = None
-        if failure is None and hasattr(est, "finish"):
-            try:
-                steady = est.finish()
-            except BaseException as exc:  # noqa: BLE001 - the filter's record so far is still written
-                failure, lines.reason = exc, _stopped_by(exc)
-        try:
-            summary = _summary(est, parser, lines.reason, cpu, wall, bad, first_bad, name, problem, live.rows)
-        except Exception as exc:  # noqa: BLE001 - the estimator's state after a failure may not summarise
-            summary = {"problem": problem.name, "source": name, "stopped": lines.reason, "samples": live.rows,
-                       "rows_written": live.rows, "lift_N": None, "lift_std_N": None,
-                       "summary_error": f"{type(exc).__name__}: {exc}", "warnings": [], "status": "failed"}  # fmt: skip
-        if steady is not None:
-            summary.update(_steady_summary(est, steady, summary))
-        if lines.restarts:
-            summary["restarts"] = list(lines.restarts)
-        scale = sanity.scale_warnings(peak[0], peak[1], problem.material.prestrain)
-        own = sanity.sourced(method, summary.get("warnings", []))  # each names its source, as identify's
-        summary["warnings"] = own + sanity.sourced("data check", scale)
-        summary["method"] = method
-        summary["membrane"] = spec.model
-        summary["options"] = options.as_dict()
-        if channels is not None:
-            summary["channels"] = parser.channels.as_dict(problem.sensor_names)
-        summary["wall_s"] = time.perf_counter() - t_start
-        write_json(tmp / "summary.json", to_jsonable(summary))
-        writer.commit()
-    if failure is not None:
-        raise _as_stream_error(failure, method, live.rows, writer.target)
-    return summary
+            if parser.ended:
+                lines.reason = "end marker"
+                break
+            if stop.get("signal"):
+                lines.reason = stop["signal"]
+                break
+        for t, y in parser.flush():  # a record shorter than the clock's warm-up
+            push(t, y)
+    except BaseException as exc:  # noqa: BLE001 - whatever stops the stream, the record so far is kept
+        # A bad row, a numerical failure, an interrupt: the estimates so far (hours of them,
+        # maybe) are written with the summary, then the error is raised.
+        lines.reason = _stopped_by(exc)
+        return exc
+    return None
+
+
+def _finish(est, failure: BaseException | None, lines) -> tuple:
+    """``(steady refit, failure)``: an estimator with a ``finish`` (a steady stream's whole-record refit)
+    finishes unless the stream failed; its own failure stops the stream as any other would."""
+    if failure is not None or not hasattr(est, "finish"):
+        return None, failure
+    try:
+        return est.finish(), None
+    except BaseException as exc:  # noqa: BLE001 - the filter's record so far is still written
+        lines.reason = _stopped_by(exc)
+        return None, exc
 
 
 def check_stream_settings(poll: float, idle_timeout: float | None) -> None:
@@ -270,93 +279,3 @@ def _as_stream_error(exc: BaseException, method: str, rows: int, out) -> BaseExc
     return SolverError(
         method, " ".join(what.split()), f"the stream stopped; its {rows} estimates so far are in {str(out)!r}"
     )
-
-
-def _status(finite: bool, info: dict, last) -> RunStatus:
-    """The stream's :class:`~wingopt.status.RunStatus`: ``failed`` without a finite estimate,
-    ``not_converged`` before the start-up finished, ``misfit`` when the last window is not explained."""
-    if not finite:
-        return RunStatus.FAILED
-    if info.get("phase") not in ("tracking", "steady"):
-        return RunStatus.NOT_CONVERGED
-    return RunStatus.CONVERGED if last.adequate else RunStatus.MISFIT
-
-
-def _summary(est, parser, reason, cpu, wall, bad, first_bad, source, problem, rows_written) -> dict:
-    last = est.last
-    finite = last is not None and np.isfinite(last.lift)
-    info = est.info()
-    warnings = list(info.get("warnings", []))  # the estimator's own (a recovered numerical failure)
-    if parser.clock is not None:  # stamps as a logger writes them, read on one uniform clock
-        warnings.append(jitter_note(source or "the stream", parser.clock))
-    if est.count == 0:
-        warnings.append("no data rows received")
-    elif info["phase"] != "tracking":
-        warnings.append(
-            f"the stream ended in the {info['phase']} phase, before the start-up: the estimates are provisional "
-            "(prior, provisional lambda and noise level)"
-        )
-    if bad:
-        warnings.append(
-            f"the window misfit exceeded the chi-square bound at {bad} samples (first at t = {first_bad:.6g} s): "
-            "the data are not explained by a constant load there (the streaming estimator does not restart; "
-            "run the batch identify on the stored record)"
-        )
-    sign = info.get("sign")
-    if sign is not None and not sign["determined"]:
-        warnings.append("the sign of the load is not determined by the prior (initial_load / initial_deflection)")
-    period = est.dt
-    lat = {"cpu": cpu.summary(period), "wall": wall.summary(period), "clock_cpu": "thread_time"}
-    if period and cpu.count and cpu.percentile(99) > period:
-        warnings.append(f"per-sample CPU time p99 {cpu.percentile(99):.3g} s exceeds the sample period {period:.3g} s")
-    return {
-        "problem": problem.name,
-        "method": "mhe-stream",
-        "mesh": list(problem.nodes),
-        "source": source,
-        "stopped": reason,
-        "samples": est.count,
-        "rows_written": rows_written,
-        "data": {
-            "rows": parser.rows,
-            "missing_rows": parser.missing_rows,
-            "gap_rows_filled": parser.gap_rows,
-            "ignored_columns": parser.ignored_columns,
-            "dt_s": parser.dt,
-            "clock": parser.clock,
-        },
-        "status": str(_status(finite, info, last)),
-        "lift_N": float(last.lift) if finite else None,
-        "lift_std_N": float(last.lift_std) if finite else None,
-        "chi2_per_datum": float(last.chi2_per_datum) if finite else None,
-        "adequate": bool(last.adequate) if last is not None else None,
-        "inadequate_samples": bad,
-        "latency": lat,
-        "estimator": info,
-        "warnings": warnings,
-    }
-
-
-def _steady_summary(est, result, summary: dict) -> dict:
-    """A steady stream's final answer: the whole-record estimate of its samples (the batch's), the
-    live filter's last estimate beside it, and the refits' trace."""
-    lift, std = result.reported_lift
-    live = {k: summary.get(k) for k in ("lift_N", "lift_std_N", "chi2_per_datum", "adequate")}
-    chi2 = result.info.get("adequacy", {}).get("chi2_per_datum")
-    own = [w for w in summary.get("warnings", []) if "window misfit" not in w]  # the refit explains the record
-    refit = sanity.sourced("steady refit", list(result.info.get("warnings", [])))
-    return {
-        "lift_N": lift,
-        "lift_std_N": std,
-        "chi2_per_datum": chi2,
-        "adequate": bool(result.info.get("model_adequate", True)),
-        "record": "steady",
-        "answer": "the whole-record (batch) estimate of the stream's samples: a steady record, no release transient",
-        "live_filter": live,
-        "refits": est.refits,
-        "steady": {
-            k: result.info.get(k) for k in ("tension", "solutions", "chosen", "model", "parameters", "parameters_std")
-        },  # fmt: skip
-        "status": str(result.status),
-        "warnings": own + refit,
-    }

@@ -31,6 +31,7 @@ __all__ = [
     "evaluate",
     "load_field",
     "METHODS",
+    "SUBJECT",
     "summarize",
     "comparison_markdown",
     "SEED_TABLE",
@@ -44,7 +45,11 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-METHODS = ("mhe", "jekf-seed", "jekf-tuned")
+SUBJECT = "mhe"
+"""The estimator the comparison studies (the seed's question: does the MHE beat its JEKF?); the
+JEKFs are its baselines, and the seed's numbers, issue 5's targets and the oracle lambda are its."""
+
+METHODS = (SUBJECT, "jekf-seed", "jekf-tuned")
 """The comparison study's estimators (the seed's question); a sweep runs any of the registry's."""
 
 SEED_TABLE = {
@@ -212,10 +217,10 @@ def comparison_markdown(summary: Sequence[dict], title: str = "") -> str:
     lines.append("|---|---|---|---|---|---|---|---|---|")
     order = {m: i for i, m in enumerate(METHODS)}
     for row in sorted(summary, key=lambda r: (r["load"], r["noise"], order.get(r["method"], 9))):
-        seed = SEED_TABLE.get(row["load"])
+        seed = SEED_TABLE.get(row["load"]) if row["method"] == SUBJECT else None
         col = 0 if row["noise"] <= 0.011 else 1
-        seed_l = f"{seed[col]:.4g}" if seed and row["method"] == "mhe" else ""
-        seed_d = f"{seed[2 + col]:.4g}" if seed and row["method"] == "mhe" else ""
+        seed_l = f"{seed[col]:.4g}" if seed else ""
+        seed_d = f"{seed[2 + col]:.4g}" if seed else ""
         lines.append(
             f"| {row['load']} | {100 * row['noise']:g} % | {row['method']} | {_fmt(row['load_error'])} | "
             f"{_fmt(row['deflection_error'])} | {_fmt(row['lift_error'])} | {row['sign_ok']}/{row['seeds']} | "

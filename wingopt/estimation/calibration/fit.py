@@ -29,6 +29,7 @@ from wingopt.estimation.core.model_form import prestrain_std_with_model_form
 from wingopt.estimation.core.record_fit import levenberg_marquardt
 from wingopt.estimation.core.record_problem import PARAMETERS, ParameterPrior, RecordProblem
 from wingopt.estimation.core.start import initial_state_prior, modal_model
+from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.noise import resolve_noise_std
 from wingopt.estimation.transient.estimator import RecordSettings
 from wingopt.measurements import Measurements
@@ -123,32 +124,65 @@ def calibrate(
     measurements : Measurements
         The calibration record: free vibration after a release, a pluck or a tap, no load.
     settings : RecordSettings, optional
-        Modal model and fit settings (default: the FvK membrane of the load estimator).
+        Modal model and fit settings (default: the FvK membrane of the load estimator); its
+        ``declaration`` (the priors, the noise, the initial shape) is filled from the model's
+        problem when ``None``.
     noise_std : float, optional
-        Sensor noise std; default: the measurements', the problem's, else estimated from the data.
+        Sensor noise std; default: the measurements', the declared one, else estimated from the data.
 
     Returns
     -------
     Calibration
         The parameters, their posterior std and correlation, the fit's adequacy.
     """
-    s = settings or RecordSettings(membrane_model="fvk")
+    s = with_declaration(settings or RecordSettings(membrane_model="fvk"), model.problem)
     t0 = time.perf_counter()
-    problem, meas = model.problem, measurements
+    meas = measurements
     if meas.count < 20:
         raise InputError(f"calibration record: {meas.count} samples, need at least 20 (a ringing of ~0.1 s)")
     sigma, noise_source = resolve_noise_std(
-        meas.values, meas.sensor_names, noise_std, meas.noise_std, problem.identification.noise_std
+        meas.values, meas.sensor_names, noise_std, meas.noise_std, s.declaration.noise_std
     )
+    rp, known = _calibration_problem(model, meas, s, sigma)
+    fit = _best_fit(rp, known, 2 * s.max_iter)
+    resid = np.full(rp.y.shape, np.nan)
+    resid[rp.valid] = fit.residuals
+    ad = assess(meas.t, resid, fit.effective_parameters, s.segment_s)
+    est, std, corr = _posterior(rp, fit, ad.inflation)
+    info = {
+        "iterations": fit.iterations,
+        "converged": fit.converged,
+        "noise_std": [float(x) for x in sigma],
+        "noise_source": noise_source,
+        "initial_shape": "the problem's bubble" if known else "unknown (identified)",
+        "model": f"FvK cubic, {getattr(rp.model, 'cubic_modes', 0)} modes" if s.membrane_model == "fvk" else "Berger",
+        "adequacy": ad.as_dict(),
+        "prior": {n: rp.prior.mean_std(n) for n in PARAMETERS},
+        "wall_s": time.perf_counter() - t0,
+    }
+    warnings = _warnings(rp, fit, ad, std)
+    return Calibration(est, std, corr, float(ad.chi2_per_datum), bool(ad.adequate), warnings, info)
+
+
+def _calibration_problem(
+    model: MembraneModel, meas: Measurements, s: RecordSettings, sigma: np.ndarray
+) -> tuple[RecordProblem, bool]:
+    """The record's least-squares problem without load unknowns (the modal model at the record's
+    sample period, the declared priors); and whether the initial shape is known."""
     dt = float(np.median(np.diff(meas.t)))
     substeps = max(s.substeps, int(np.ceil(dt / s.substep_s - 1e-9)))
     bm = modal_model(model, s.membrane_model, min(s.modes, model.n), dt, substeps, s.stretch_gain, s.cubic_modes)
-    prior = ParameterPrior.from_problem(problem, PARAMETERS, s.prestrain_rel, s.damping_rel)
-    x_mean, x_std, known = initial_state_prior(bm, problem, meas.values)
-    rp = RecordProblem(
-        bm, LoadShapes.none(model), meas.t, meas.values, sigma, prior, x_mean, x_std, None, True,
-        min(s.state_modes, bm.m),
-    )  # fmt: skip
+    problem, declared = model.problem, s.declaration
+    prior = ParameterPrior.from_problem(problem, PARAMETERS, s.prestrain_rel, s.damping_rel, declaration=declared)
+    x_mean, x_std, known = initial_state_prior(bm, problem, meas.values, declared.initial_deflection)
+    shapes, ms = LoadShapes.none(model), min(s.state_modes, bm.m)
+    rp = RecordProblem(bm, shapes, meas.t, meas.values, sigma, prior, x_mean, x_std, state_modes=ms)
+    return rp, known
+
+
+def _best_fit(rp: RecordProblem, known: bool, max_iter: int):
+    """The fit from the best of the starts: each start scored by its cost, the cheapest few fitted
+    briefly, the best of those to convergence (``max_iter``)."""
     scored = []
     for th in _starts(rp, known):
         with np.errstate(over="ignore", invalid="ignore"):
@@ -158,11 +192,13 @@ def calibrate(
     scored.sort(key=lambda f: f[0])
     brief = [levenberg_marquardt(rp, th, BRIEF) for _, th in scored[:SHORTLIST]]
     best = min(brief, key=lambda f: f.cost)
-    fit = levenberg_marquardt(rp, best.theta, 2 * s.max_iter)
-    resid = np.full(rp.y.shape, np.nan)
-    resid[rp.valid] = fit.residuals
-    ad = assess(meas.t, resid, fit.effective_parameters, s.segment_s)
-    cov = fit.covariance * ad.inflation**2
+    return levenberg_marquardt(rp, best.theta, max_iter)
+
+
+def _posterior(rp: RecordProblem, fit, inflation: float) -> tuple[dict, dict, np.ndarray]:
+    """The parameters, their 1-sigma (misfit-inflated, the prestrains' model-form floor added) and
+    their correlation."""
+    cov = fit.covariance * inflation**2
     par = rp.physical(fit.theta)
     sl = rp.slices["par"]
     idx = [sl.start + rp.prior.free.index(n) for n in PARAMETERS]
@@ -182,6 +218,12 @@ def calibrate(
     # lift 3.2 % off at 5.8 bands).
     corr = corr * np.outer(share, share)
     np.fill_diagonal(corr, 1.0)
+    return est, std, corr
+
+
+def _warnings(rp: RecordProblem, fit, ad, std: dict) -> list[str]:
+    """What the calibration says about itself: a misfit record, a fit that did not converge, a
+    prestrain the record holds little on."""
     warnings = []
     if not ad.adequate:
         warnings.append(
@@ -197,15 +239,4 @@ def calibrate(
                 f"{name}: the record holds little on it (posterior std {std[name]:.2g}, prior {prior_sd:.2g}): "
                 "a longer or stronger ringing (a harder pluck, a higher sample rate) would identify it"
             )
-    info = {
-        "iterations": fit.iterations,
-        "converged": fit.converged,
-        "noise_std": [float(x) for x in sigma],
-        "noise_source": noise_source,
-        "initial_shape": "the problem's bubble" if known else "unknown (identified)",
-        "model": f"FvK cubic, {getattr(bm, 'cubic_modes', 0)} modes" if s.membrane_model == "fvk" else "Berger",
-        "adequacy": ad.as_dict(),
-        "prior": {n: rp.prior.mean_std(n) for n in PARAMETERS},
-        "wall_s": time.perf_counter() - t0,
-    }
-    return Calibration(est, std, corr, float(ad.chi2_per_datum), bool(ad.adequate), warnings, info)
+    return warnings

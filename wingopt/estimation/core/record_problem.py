@@ -23,7 +23,9 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation.core.load_model import GustAmplitude, LoadShapes
+from wingopt.estimation.declaration import declaration_of
 from wingopt.membrane.forward import ForceTangent, ModalMembrane
+from wingopt.problem.membrane import IdentificationSettings
 
 __all__ = ["PARAMETERS", "ParameterPrior", "RecordProblem"]
 
@@ -52,9 +54,15 @@ class ParameterPrior:
     correlation: float = 0.0
 
     @classmethod
-    def from_problem(cls, problem, free=None, prestrain_rel=None, damping_rel=None) -> ParameterPrior:
-        """The problem file's prior (a calibration's posterior when it carries one); arguments override."""
-        ident = problem.identification
+    def from_problem(
+        cls, problem, free=None, prestrain_rel=None, damping_rel=None, declaration: IdentificationSettings | None = None
+    ) -> ParameterPrior:
+        """The problem file's prior (a calibration's posterior when it carries one); arguments override.
+
+        ``declaration``: the ``[identification]`` the fit runs with (its settings' ``declaration``);
+        ``None``: the problem's own (:func:`~wingopt.estimation.declaration.declaration_of`).
+        """
+        ident = declaration_of(problem) if declaration is None else declaration
         e0 = problem.material.prestrain
         mean = ident.prestrain if ident.prestrain is not None else (e0, e0)
         rel = ident.prestrain_prior_rel if prestrain_rel is None else prestrain_rel

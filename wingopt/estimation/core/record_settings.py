@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from wingopt.errors import InputError
 from wingopt.estimation.core.load_model import GustAmplitude
 from wingopt.estimation.options import option
+from wingopt.problem.membrane import IdentificationSettings
 
 __all__ = ["RecordSettings", "LOAD_MODELS", "MEMBRANE_MODELS"]
 
@@ -82,6 +83,11 @@ class RecordSettings:
     cpu_s : float or None
         A CPU-second budget on top, for a hard limit beside the wing (``None``: none; CPU time is
         machine-dependent, so it is not the default: the same record would give another answer).
+    declaration : IdentificationSettings or None
+        What the problem file declares for identification (its ``[identification]``: noise, initial
+        load and shape, parameter priors, pressure prior), filled by the builder from the problem
+        (:func:`~wingopt.estimation.declaration.with_declaration`; ``None`` until then); a caller
+        may give its own. The fits read it here, never the problem.
     """
 
     modes: int = field(default=48, metadata=option("modes"))
@@ -111,6 +117,7 @@ class RecordSettings:
     max_total_iter: int = 160
     stop_early: bool = True
     cpu_s: float | None = None
+    declaration: IdentificationSettings | None = None
 
     def __post_init__(self) -> None:
         if self.membrane_model not in MEMBRANE_MODELS:

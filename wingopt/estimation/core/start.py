@@ -9,6 +9,7 @@ import numpy as np
 
 from wingopt.estimation.core.record_fit import levenberg_marquardt
 from wingopt.estimation.core.record_problem import RecordProblem
+from wingopt.estimation.declaration import declaration_of
 from wingopt.membrane import bubble
 from wingopt.membrane.forward import ModalMembrane, modal_model
 
@@ -17,9 +18,13 @@ __all__ = ["initial_state_prior", "modal_model", "scan", "short_start", "SCAN_S"
 log = logging.getLogger(__name__)
 
 
-def initial_state_prior(bm: ModalMembrane, problem, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
-    """Prior mean and std of ``[q0, q0']``: the file's bubble when stated, else zero at the data's scale."""
-    peak = problem.identification.initial_deflection
+def initial_state_prior(
+    bm: ModalMembrane, problem, y: np.ndarray, initial_deflection: float | None = None
+) -> tuple[np.ndarray, np.ndarray, bool]:
+    """Prior mean and std of ``[q0, q0']``: the bubble of peak ``initial_deflection`` (m) when
+    stated, else zero at the data's scale. ``initial_deflection``: the declaration's (the fit's
+    ``settings.declaration``); ``None``: the problem's own ``[identification]``."""
+    peak = declaration_of(problem).initial_deflection if initial_deflection is None else initial_deflection
     md = bm.m
     omega = bm.omega()[:md]
     known = peak != 0

@@ -24,22 +24,26 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from wingopt.estimation.core.load_model import LoadShapes
+from wingopt.estimation.core.load_prior import load_priors, prior_kinds
 from wingopt.estimation.core.record_problem import ParameterPrior
-from wingopt.estimation.fullfield.data import field_data, inplane_check
+from wingopt.estimation.declaration import with_declaration
+from wingopt.estimation.fullfield.data import FieldData, field_data, inplane_check
 from wingopt.estimation.fullfield.frames import frame_loads
 from wingopt.estimation.fullfield.model_form import model_form
 from wingopt.estimation.fullfield.modes import ModalCheck, modal_check
-from wingopt.estimation.fullfield.settings import FullFieldSettings
+from wingopt.estimation.fullfield.settings import AUTO_PRIORS, FullFieldSettings
 from wingopt.estimation.fullfield.steady import PrestrainPrior, SteadyFit, fit_prior
 from wingopt.estimation.fullfield.system import PressureFromShape
 from wingopt.estimation.fullfield.tension import MIN_FLUCTUATION, DynamicTension, dynamic_tension, fluctuation
 from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements.dic import DICFrames
-from wingopt.membrane.forward import full_model
+from wingopt.membrane.forward import FullStructure, full_model
 from wingopt.membrane.model import MembraneModel
 from wingopt.membrane.parameters import MembraneParameters
 
@@ -52,23 +56,40 @@ ADEQUATE_CHI2 = 4.0
 
 
 def _priors(model: MembraneModel, s: FullFieldSettings, p0: float) -> list[tuple[str, LoadShapes]]:
-    out = []
-    for name in s.priors:
-        if name == "interior":
-            out.append(("interior", LoadShapes.build(model, s.shapes, p0, s.kappa)))
-        elif name == "frame":
-            out.append(("frame", LoadShapes.build(model, s.shapes, p0, s.kappa, 1.0, s.edge_shapes)))
-        else:
-            le = s.leading_edge or model.problem.identification.leading_edge
-            for edge in (le,) if le else ("x0", "x1"):
-                out.append((f"aerodynamic {edge}", LoadShapes.aerodynamic(model, p0, edge, s.kappa)))
-    return out
+    """The settings' load priors, else the declared ``pressure_prior`` (under ``auto``:
+    :data:`.settings.AUTO_PRIORS`)."""
+    d = s.declaration
+    kinds = s.priors or prior_kinds(d, AUTO_PRIORS)
+    return load_priors(model, kinds, p0, s.prior_scales, s.leading_edge or d.leading_edge)
+
+
+@dataclass(frozen=True, eq=False)
+class _MeanField:
+    """The steady fit's data: the frames' fits, the data ``y0`` and weights of the mean field, and
+    the FvK membrane at the prestrain prior's mean."""
+
+    data: FieldData
+    y0: np.ndarray
+    weight: np.ndarray
+    prestrain: PrestrainPrior
+    fvk: FullStructure
+
+    @classmethod
+    def of(cls, model: MembraneModel, frames: DICFrames, s: FullFieldSettings) -> _MeanField:
+        data = field_data(frames, model, s.smoothing, s.min_valid)
+        prior = ParameterPrior.from_problem(model.problem)
+        pp = PrestrainPrior.of(prior, s.declaration.prestrain_std is not None)
+        fvk = full_model(model, "fvk", MembraneParameters(*pp.mean, prior.damping, prior.damping))
+        y0 = data.mean_w - data.basis @ data.mean_z
+        return cls(data, y0, np.full(y0.size, 1.0 / data.tau**2), pp, fvk)
 
 
 def fullfield_identify(
-    model: MembraneModel, frames: DICFrames, settings: FullFieldSettings | None = None,
+    model: MembraneModel,
+    frames: DICFrames,
+    settings: FullFieldSettings | None = None,
     initial_load: float | None = None,
-) -> IdentificationResult:  # fmt: skip
+) -> IdentificationResult:
     """Estimate the pressure field and its lift from DIC frames (module docstring).
 
     Parameters
@@ -78,6 +99,7 @@ def fullfield_identify(
     frames : DICFrames
         In the wing's frame (a reader has mapped them).
     settings : FullFieldSettings, optional
+        Its ``declaration`` is filled from ``model.problem`` when not given.
     initial_load : float, optional
         The load prior's pressure scale (Pa; its magnitude: DIC sees the sign); default the problem's.
 
@@ -89,75 +111,103 @@ def fullfield_identify(
         its band; ``info`` holds the steady fit per prior, the prestrains and their source, the
         tension from the dynamics when fitted, the misfit and the in-plane check.
     """
-    s = settings or FullFieldSettings()
+    s = with_declaration(settings or FullFieldSettings(), model.problem)
     t0 = time.perf_counter()
-    problem = model.problem
-    p0 = abs(s.pressure or (initial_load if initial_load is not None else problem.identification.initial_load))
-    data = field_data(frames, model, s.smoothing, s.min_valid)
-    prior = ParameterPrior.from_problem(problem)
-    pp = PrestrainPrior.of(prior, problem.identification.prestrain_std is not None)
-    damping = prior.damping
-    fvk = full_model(model, "fvk", MembraneParameters(*pp.mean, damping, damping))
-    B = data.basis
-    y0 = data.mean_w - B @ data.mean_z
-    weight = np.full(y0.size, 1.0 / data.tau**2)
-    mode = s.mode if s.mode != "auto" else ("frames" if data.count > 1 else "steady")
-    systems = [(lb, sh, PressureFromShape(fvk, data.mean_z, B, sh.forces)) for lb, sh in _priors(model, s, p0)]
+    p0 = abs(s.pressure or (initial_load if initial_load is not None else s.declaration.initial_load))
+    mf = _MeanField.of(model, frames, s)
+    mode = s.mode if s.mode != "auto" else ("frames" if mf.data.count > 1 else "steady")
+    fits, dyn = _steady_fits(_priors(model, s, p0), mf, s, mode)
+    w, mean, std = _mixture(fits)
+    best = fits[int(np.argmax(w))]
+    form, std_before = None, std
+    if best.post.chi2_per_datum > ADEQUATE_CHI2:
+        # a systematic misfit: the band takes in the lifts of the spaces the evidence does not exclude
+        # (:mod:`.model_form`); the lift does not move
+        form = model_form(model, s, p0, mf.fvk, mf.data, mf.y0, mf.weight, best, mean)
+        std = float(np.hypot(std, form.spread))
+    h = _frames(mf.data, best, s.inertia, std) if mode == "frames" else _repeated(mf.data, best, mean, std)
+    modal = None
+    if mode == "frames" and s.modes and fluctuation(mf.data) >= MIN_FLUCTUATION:
+        modal = modal_check(mf.data, best.system, best.prestrain)
+    info = _info(s, mode, mf.data, fits, w, best, mean, std, mf.prestrain, mf.fvk, dyn, modal)
+    info["model_form"] = None if form is None else form.as_dict(mean, std_before)
+    if form is not None:
+        info["warnings"].append(form.warning(mean, std_before))
+    if h.chi2_median is not None:
+        info["frames_chi2_per_datum_median"] = h.chi2_median
+    return IdentificationResult(
+        method="fullfield",
+        t=h.t,
+        load=np.asarray(h.load),
+        deflection=np.asarray(h.deflection),
+        lift=h.lift,
+        lift_std=h.lift_std,
+        regularization=float(s.kappa),
+        wall_s=time.perf_counter() - t0,
+        info=info,
+        load_space=None if best.shapes.space is None else best.shapes.space.space,
+    )
+
+
+def _steady_fits(priors, mf: _MeanField, s: FullFieldSettings, mode: str):
+    """Each prior's steady fit of the mean field, on the frames' dynamic tension where it is fitted
+    (``prestrain="dynamics"``, or ``"auto"`` in the time-resolved mode without a calibration)."""
+    systems = [(lb, sh, PressureFromShape(mf.fvk, mf.data.mean_z, mf.data.basis, sh.forces)) for lb, sh in priors]
     steady_mode = "fit" if s.prestrain == "fit" else "prior"
+    pp, y0, weight = mf.prestrain, mf.y0, mf.weight
     fits = [fit_prior(lb, sh, sy, y0, weight, pp, steady_mode) for lb, sh, sy in systems]
     dyn = None
     if s.prestrain == "dynamics" or (s.prestrain == "auto" and mode == "frames" and not pp.calibrated):
         best = max(fits, key=lambda f: f.log_evidence)
-        dyn = dynamic_tension(data, best.shapes, best.system, y0, weight, pp)
+        dyn = dynamic_tension(mf.data, best.shapes, best.system, y0, weight, pp)
         if dyn.used:
             fits = [fit_prior(lb, sh, sy, y0, weight, pp, "prior", (dyn.theta, dyn.cov)) for lb, sh, sy in systems]
         # (asked for the dynamics and not given them: _info's warnings say so, once, in the result)
+    return fits, dyn
+
+
+def _mixture(fits: list[SteadyFit]) -> tuple[np.ndarray, float, float]:
+    """The priors' evidence weights, and the lift's mixture mean and std."""
     z = np.array([f.log_evidence for f in fits])
     w = np.exp(z - z.max())
     w /= w.sum()
     lifts = np.array([f.lift for f in fits])
     stds = np.array([f.lift_std for f in fits])
     mean = float(w @ lifts)
-    std = float(np.sqrt(max(w @ (stds**2 + lifts**2) - mean**2, 0.0)))
-    best = fits[int(np.argmax(w))]
-    form = None
-    if best.post.chi2_per_datum > ADEQUATE_CHI2:
-        # a systematic misfit: the band takes in the lifts of the spaces the evidence does not exclude
-        # (:mod:`.model_form`); the lift does not move
-        form = model_form(model, s, p0, fvk, data, y0, weight, best, mean)
-        std_before, std = std, float(np.hypot(std, form.spread))
+    return w, mean, float(np.sqrt(max(w @ (stds**2 + lifts**2) - mean**2, 0.0)))
+
+
+class _History(NamedTuple):
+    """The result's per-frame answer (``chi2_median``: the time-resolved frames' median misfit)."""
+
+    t: np.ndarray
+    load: np.ndarray
+    deflection: np.ndarray
+    lift: np.ndarray
+    lift_std: np.ndarray
+    chi2_median: float | None = None
+
+
+def _frames(data: FieldData, best: SteadyFit, inertia: bool, std: float) -> _History:
+    """Time-resolved: every used frame's own load about the steady fit, the other priors' spread
+    (the steady band beyond the chosen prior's) scaled with the load."""
+    fl = frame_loads(data, best, inertia)
+    extra = max(std**2 - best.lift_std**2, 0.0)
+    lift_std = np.sqrt(fl.lift_std**2 + extra * (fl.lift / best.lift) ** 2)
+    chi2 = float(np.median(fl.chi2_per_datum))
+    return _History(fl.t, best.shapes.coefficients(fl.c), fl.z, fl.lift, lift_std, chi2)
+
+
+def _repeated(data: FieldData, best: SteadyFit, mean: float, std: float) -> _History:
+    """Steady: the steady estimate at every used frame's time."""
     idx = np.flatnonzero(data.used)
-    if mode == "frames":
-        fl = frame_loads(data, best, s.inertia)
-        extra = max(std**2 - best.lift_std**2, 0.0)  # the other priors' spread, scaled with the load
-        t, load = fl.t, best.shapes.coefficients(fl.c)
-        deflection, lift = fl.z, fl.lift
-        lift_std = np.sqrt(fl.lift_std**2 + extra * (fl.lift / best.lift) ** 2)
-    else:
-        t = frames.t[idx]
-        load = np.broadcast_to(best.load(), (idx.size, best.load().size))
-        deflection = np.broadcast_to(best.deflection(), (idx.size, model.n))
-        lift, lift_std = np.full(idx.size, mean), np.full(idx.size, std)
-    modal = None
-    if mode == "frames" and s.modes and fluctuation(data) >= MIN_FLUCTUATION:
-        modal = modal_check(data, best.system, best.prestrain)
-    info = _info(s, mode, data, fits, w, best, mean, std, pp, fvk, dyn, modal)
-    info["model_form"] = None if form is None else form.as_dict(mean, std_before)
-    if form is not None:
-        info["warnings"].append(form.warning(mean, std_before))
-    if mode == "frames":
-        info["frames_chi2_per_datum_median"] = float(np.median(fl.chi2_per_datum))
-    return IdentificationResult(
-        method="fullfield",
-        t=t,
-        load=np.asarray(load),
-        deflection=np.asarray(deflection),
-        lift=lift,
-        lift_std=lift_std,
-        regularization=float(s.kappa),
-        wall_s=time.perf_counter() - t0,
-        info=info,
-        load_space=None if best.shapes.space is None else best.shapes.space.space,
+    load, z = best.load(), best.deflection()
+    return _History(
+        data.frames.t[idx],
+        np.broadcast_to(load, (idx.size, load.size)),
+        np.broadcast_to(z, (idx.size, z.size)),
+        np.full(idx.size, mean),
+        np.full(idx.size, std),
     )
 
 
@@ -228,7 +278,7 @@ def _info(s, mode, data, fits, w, best: SteadyFit, mean, std, pp: PrestrainPrior
             "points": fr.n_points,
             "valid_fraction": fr.valid_fraction,
             "source": fr.source,
-        },  # fmt: skip
+        },
         "noise_w_m": data.sigma,
         "mean_field_noise_m": data.tau,
         "solutions": [
@@ -241,7 +291,7 @@ def _info(s, mode, data, fits, w, best: SteadyFit, mean, std, pp: PrestrainPrior
                 "chi2_per_datum": f.post.chi2_per_datum,
             }
             for f, wi in zip(fits, w)
-        ],  # fmt: skip
+        ],
         "chosen": best.label,
         "steady_lift_N": mean,  # the reported lift (IdentificationResult.reported_lift): the frames' steady part
         "steady_lift_std_N": std,
@@ -250,7 +300,7 @@ def _info(s, mode, data, fits, w, best: SteadyFit, mean, std, pp: PrestrainPrior
             "lift_std_N": std,
             "lift_std_load_N": best.lift_std_load,
             "lift_per_prior_std": best.lift_grad.tolist(),
-        },  # fmt: skip
+        },
         "parameters": {"prestrain_x": ex, "prestrain_y": ey, "damping": float(fvk.params.viscous_scale)},
         "parameters_std": {"prestrain_x": float(sx), "prestrain_y": float(sy), "damping": 0.0},
         "prestrain_source": _source(pp, dyn),

@@ -28,12 +28,14 @@ reported lift does not move (the pattern of :mod:`wingopt.estimation.core.frame_
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from dataclasses import dataclass
 
 import numpy as np
 
 from wingopt.estimation.core.load_model import LoadShapes
+from wingopt.estimation.core.load_prior import KINDS, load_priors
 from wingopt.estimation.fullfield.steady import SteadyFit
 from wingopt.estimation.fullfield.system import PressureFromShape, posterior
 from wingopt.estimation.load_space import build_load_space
@@ -101,31 +103,31 @@ def _spaces(model: MembraneModel, s, p0: float, best: SteadyFit) -> list[tuple[s
     """The richer and looser spaces of the chosen prior, and every prior that was not it."""
     out = []
     kind = best.label.split()[0]
+    scales = s.prior_scales
     if kind in ("interior", "frame"):
+        free = build_load_space(model, "free", edge_weight=0.0).n if kind == "frame" else 0
         for factor in RICHER:
-            edges = factor * s.edge_shapes if kind == "frame" else 0
-            if kind == "frame":
-                edges = min(edges, build_load_space(model, "free", edge_weight=0.0).n)
-            count = min(factor * s.shapes, model.n)
-            out.append((f"{kind}, {count} + {edges} shapes", LoadShapes.build(model, count, p0, s.kappa, 1.0, edges)))
-        wide = LOOSER * s.kappa
-        fewer = s.edge_shapes if kind == "frame" else 0
-        out.append((f"{kind}, prior x{LOOSER:g}", LoadShapes.build(model, s.shapes, p0, wide, 1.0, fewer)))
-    others = {"interior", "frame", "aerodynamic x0", "aerodynamic x1"} - {best.label}
-    for label in sorted(others):
-        if label == "interior":
-            out.append((label, LoadShapes.build(model, s.shapes, p0, s.kappa)))
-        elif label == "frame":
-            out.append((label, LoadShapes.build(model, s.shapes, p0, s.kappa, 1.0, s.edge_shapes)))
-        else:
-            out.append((label, LoadShapes.aerodynamic(model, p0, label.split()[1], s.kappa)))
-    return out
+            count = min(factor * scales.shapes, model.n)
+            richer = dataclasses.replace(scales, shapes=count, edge_shapes=min(factor * scales.edge_shapes, free))
+            ((_, shapes),) = load_priors(model, (kind,), p0, richer)
+            out.append((f"{kind}, {count} + {shapes.count - count} shapes", shapes))
+        ((_, shapes),) = load_priors(model, (kind,), p0, dataclasses.replace(scales, kappa=LOOSER * scales.kappa))
+        out.append((f"{kind}, prior x{LOOSER:g}", shapes))
+    others = [(label, shapes) for label, shapes in load_priors(model, KINDS, p0, scales) if label != best.label]
+    return out + sorted(others, key=lambda other: other[0])
 
 
 def model_form(
-    model: MembraneModel, settings, p0: float, fvk, data, y0: np.ndarray, weight: np.ndarray,
-    best: SteadyFit, lift: float,
-) -> ModelForm:  # fmt: skip
+    model: MembraneModel,
+    settings,
+    p0: float,
+    fvk,
+    data,
+    y0: np.ndarray,
+    weight: np.ndarray,
+    best: SteadyFit,
+    lift: float,
+) -> ModelForm:
     """Refit the mean field by the alternatives (module docstring) at ``best``'s prestrains.
 
     Parameters
@@ -159,8 +161,8 @@ def model_form(
         # held-out: the half's fit predicts the other half; its chi-square per datum there decides admission
         other = halves[1 - k]
         r = (y0 + offset)[other] - A[other] @ post.c
-        alts.append((f"{best.label}, held-out half {k + 1}", float(best.shapes.lift_row @ post.c),
-                     float(r @ (weight[other] * r)) / other.size))  # fmt: skip
+        held_out = float(r @ (weight[other] * r)) / other.size
+        alts.append((f"{best.label}, held-out half {k + 1}", float(best.shapes.lift_row @ post.c), held_out))
     rows = tuple(
         {"label": lb, "lift_N": v, "chi2_per_datum": c, "admitted": bool(c <= ADMITS * chi2)} for lb, v, c in alts
     )

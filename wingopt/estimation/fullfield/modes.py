@@ -147,7 +147,7 @@ class ModalCheck:
             "frequency_std_rel_needed": self.needed_rel,
             "identifies_prestrains": self.identifies,
             "note": "f11, f21 from the frames' modal spectra: a check and a statement, not used for the prestrains",
-        }  # fmt: skip
+        }
 
 
 def loaded_modes(system: PressureFromShape, prestrain, count: int = 2) -> tuple[np.ndarray, np.ndarray]:
@@ -257,6 +257,12 @@ def modal_check(data: FieldData, system: PressureFromShape, prestrain) -> ModalC
     log.info(
         "loaded frequencies: measured %.2f ± %.2f, %.2f ± %.2f Hz; predicted %.2f, %.2f; "
         "prestrains from them ± %.1f %%, ± %.1f %%",
-        meas[0], std[0], meas[1], std[1], fm[0], fm[1], *(100 * out.prestrain_std_rel),
-    )  # fmt: skip
+        meas[0],
+        std[0],
+        meas[1],
+        std[1],
+        fm[0],
+        fm[1],
+        *(100 * out.prestrain_std_rel),
+    )
     return out

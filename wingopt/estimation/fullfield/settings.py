@@ -8,9 +8,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from wingopt.errors import InputError
+from wingopt.estimation.core.load_prior import PriorScales
 from wingopt.estimation.options import option
+from wingopt.problem.membrane import IdentificationSettings
 
-__all__ = ["FullFieldSettings", "MODES", "PRIORS", "PRESTRAIN"]
+__all__ = ["FullFieldSettings", "MODES", "PRIORS", "AUTO_PRIORS", "PRESTRAIN"]
 
 MODES = ("auto", "steady", "frames")
 """``steady``: the frames averaged, one static fit; ``frames``: the steady fit, then every frame's own
@@ -20,7 +22,12 @@ _MODE = {"constant": "steady", "varying": "frames"}
 """The identification option's load model -> the mode (a steady load: the frames averaged)."""
 
 PRIORS = ("interior", "frame", "aerodynamic")
-"""Load priors: zero on the frame; acting up to it (free-edge shapes); thin-airfoil shapes."""
+"""Load priors: zero on the frame; acting up to it (free-edge shapes); thin-airfoil shapes
+(:mod:`~wingopt.estimation.core.load_prior`)."""
+
+AUTO_PRIORS = ("interior", "frame")
+"""The load priors of a problem file that declares ``pressure_prior = "auto"``: 800 points tell a
+load that vanishes on the frame from one that acts up to it (docs/dic.md)."""
 
 PRESTRAIN = ("auto", "prior", "dynamics", "fit")
 """``prior``: the prestrains are the prior's (the problem file's, or a calibration's) and their
@@ -39,11 +46,13 @@ class FullFieldSettings:
     Attributes
     ----------
     mode : {"auto", "steady", "frames"}
-    priors : tuple of str
-        Load priors fitted and weighed by their evidence (:data:`PRIORS`).
+    priors : tuple of str or None
+        Load priors fitted and weighed by their evidence (:data:`PRIORS`); ``None``: the problem
+        file's ``[identification] pressure_prior``, :data:`AUTO_PRIORS` where it says ``auto``.
     shapes, edge_shapes : int
         Interior load shapes (smoothest, zero on the frame) and free-edge ones more (the ``frame``
-        prior): 800 points resolve far more than four sensors.
+        prior; ``0``: :data:`~wingopt.estimation.core.frame_check.FRAME_SHAPES`): 800 points resolve
+        far more than four sensors.
     pressure : float or None
         Prior pressure scale (Pa); ``None``: ``|initial_load|`` (the problem file's).
     kappa : float
@@ -63,10 +72,14 @@ class FullFieldSettings:
         Time-resolved mode, a record that fluctuates: the first two loaded frequencies measured from
         the frames' modal spectra, against the model's, and what they say about the prestrains
         (:mod:`.modes`; ``info["loaded_modes"]``, about 1 s of CPU).
+    declaration : IdentificationSettings or None
+        The problem file's ``[identification]`` (prior pressure, prestrain prior, pressure prior,
+        leading edge): filled by the builder from the problem file, or at the estimator's entry
+        (:func:`~wingopt.estimation.declaration.with_declaration`); read nowhere else.
     """
 
     mode: str = field(default="auto", metadata=option("load_model", lambda v: {"mode": _MODE.get(v, "auto")}))
-    priors: tuple[str, ...] = ("interior", "frame")
+    priors: tuple[str, ...] | None = None
     shapes: int = 40
     edge_shapes: int = 20
     pressure: float | None = field(default=None, metadata=option("initial_load", lambda v: {"pressure": abs(v)}))
@@ -77,11 +90,12 @@ class FullFieldSettings:
     min_valid: float = 0.5
     leading_edge: str | None = None
     modes: bool = True
+    declaration: IdentificationSettings | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise InputError(f"mode = {self.mode!r}: expected one of {', '.join(MODES)}")
-        if not self.priors or any(p not in PRIORS for p in self.priors):
+        if self.priors is not None and (not self.priors or any(p not in PRIORS for p in self.priors)):
             raise InputError(f"priors = {self.priors!r}: expected some of {', '.join(PRIORS)}")
         if self.prestrain not in PRESTRAIN:
             raise InputError(f"prestrain = {self.prestrain!r}: expected one of {', '.join(PRESTRAIN)}")
@@ -102,3 +116,8 @@ class FullFieldSettings:
 
     def replace(self, **kw) -> FullFieldSettings:
         return dataclasses.replace(self, **kw)
+
+    @property
+    def prior_scales(self) -> PriorScales:
+        """The sizes and scales of its load priors (the interior shapes' std decays as ``mu_1 / mu_s``)."""
+        return PriorScales(self.shapes, self.kappa, 1.0, self.edge_shapes)

@@ -110,9 +110,15 @@ def _solve(system: PressureFromShape, shapes: LoadShapes, y0: np.ndarray, weight
 
 
 def fit_prior(
-    label: str, shapes: LoadShapes, system: PressureFromShape, y0: np.ndarray, weight: np.ndarray,
-    prior: PrestrainPrior, mode: str, given: tuple[np.ndarray, np.ndarray] | None = None,
-) -> SteadyFit:  # fmt: skip
+    label: str,
+    shapes: LoadShapes,
+    system: PressureFromShape,
+    y0: np.ndarray,
+    weight: np.ndarray,
+    prior: PrestrainPrior,
+    mode: str,
+    given: tuple[np.ndarray, np.ndarray] | None = None,
+) -> SteadyFit:
     """Fit one load prior (``y0 = W̄ - B ẑ``; ``weight = 1/tau^2``) with the prestrains as ``mode`` says
     (``"prior"``, ``"fit"``), or at ``given = (theta, cov)`` (the frames' dynamics, :mod:`.tension`)."""
 

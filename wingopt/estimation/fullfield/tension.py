@@ -66,9 +66,13 @@ class DynamicTension:
         L = prior.chol
         s = np.sqrt(np.diag(L @ self.cov @ L.T))
         return {
-            "used": self.used, "reason": self.reason, "prestrain": list(e), "prestrain_std": s.tolist(),
-            "chi2_per_datum": self.chi2_per_datum, "fluctuation_to_noise": self.fluctuation,
-        }  # fmt: skip
+            "used": self.used,
+            "reason": self.reason,
+            "prestrain": list(e),
+            "prestrain_std": s.tolist(),
+            "chi2_per_datum": self.chi2_per_datum,
+            "fluctuation_to_noise": self.fluctuation,
+        }
 
 
 class _Frames:
@@ -100,9 +104,13 @@ def fluctuation(data: FieldData) -> float:
 
 
 def dynamic_tension(
-    data: FieldData, shapes: LoadShapes, system: PressureFromShape, y0: np.ndarray, weight: np.ndarray,
+    data: FieldData,
+    shapes: LoadShapes,
+    system: PressureFromShape,
+    y0: np.ndarray,
+    weight: np.ndarray,
     prior: PrestrainPrior,
-) -> DynamicTension:  # fmt: skip
+) -> DynamicTension:
     """The prestrains that make every frame's load the steady load's shape times an amplitude (module docstring)."""
     fluct = fluctuation(data)
     if data.count < MIN_FRAMES or fluct < MIN_FLUCTUATION:

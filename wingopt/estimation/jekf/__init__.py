@@ -18,12 +18,11 @@ Kalman filter on the quadratic stretch sensors ``s_i = z^T C_i z`` (Jacobian row
   filter approximates ``min Σ |y_k - h(x_k)|^2_{R^-1} + lambda (f - f0)^T Lam (f - f0) + state prior``.
 
 :mod:`~.settings` (configuration, seed and tuned presets), :mod:`~.filter` (the step-able
-filter), :mod:`~.batch` (a whole record, one-shot entry), :mod:`~.seed_lambda` (the seed's
+filter), :mod:`~.batch` (a whole record through it, ``JointEKF.run``), :mod:`~.seed_lambda` (the seed's
 Nelder–Mead on the truth), :mod:`~.tuning` (data-only lambda rules), :mod:`~.presets` (the two
 baselines as the command line and the studies run them).
 """
 
-from wingopt.estimation.jekf.batch import filter_record
 from wingopt.estimation.jekf.filter import JointEKF, joint_transition
 from wingopt.estimation.jekf.presets import VARIANTS, identify, jekf_identify
 from wingopt.estimation.jekf.seed_lambda import LambdaSearch, seed_lambda
@@ -34,7 +33,6 @@ __all__ = [
     "JEKFSettings",
     "JointEKF",
     "jekf_identify",
-    "filter_record",
     "joint_transition",
     "SEED_MEASUREMENT_VARIANCE",
     "seed_lambda",

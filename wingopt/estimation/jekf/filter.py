@@ -36,12 +36,11 @@ from scipy.linalg.lapack import dpotrs as _potrs
 
 from wingopt.dynamics import zoh
 from wingopt.errors import InputError, SolverError
-from wingopt.estimation.jekf.batch import filter_record
+from wingopt.estimation.declaration import with_declaration
+from wingopt.estimation.jekf.batch import WholeRecord
 from wingopt.estimation.jekf.prior import JointPrior
 from wingopt.estimation.jekf.settings import JEKFSettings, _as_positive
 from wingopt.estimation.jekf.transition import _first_order, _joint, _modal_blocks, joint_transition
-from wingopt.estimation.result import IdentificationResult
-from wingopt.measurements.series import Measurements
 from wingopt.membrane.model import MembraneModel
 
 __all__ = ["JEKFSettings", "JointEKF", "joint_transition"]
@@ -49,17 +48,19 @@ __all__ = ["JEKFSettings", "JointEKF", "joint_transition"]
 log = logging.getLogger(__name__)
 
 
-class JointEKF:
-    """Step-able joint EKF on the membrane (``setup`` / ``step`` / ``run``).
+class JointEKF(WholeRecord):
+    """Step-able joint EKF on the membrane (``setup`` / ``step``; ``run``: a whole record,
+    :class:`~wingopt.estimation.jekf.batch.WholeRecord`).
 
     Parameters
     ----------
     model : MembraneModel
         The estimator's model (its mesh is the estimator's mesh).
     settings : JEKFSettings, optional
-        Default: the seed-faithful :meth:`JEKFSettings.seed` with ``lambda = 1``.
+        Default: the seed-faithful :meth:`JEKFSettings.seed` with ``lambda = 1``; its
+        ``declaration`` is filled from the model's problem when ``None``.
     dt : float, optional
-        Default sample period (s) for :meth:`step` without a time; default the problem's ``dt``.
+        Default sample period (s) for :meth:`step` without a time; default the declared ``dt``.
 
     Examples
     --------
@@ -72,10 +73,11 @@ class JointEKF:
         if not isinstance(model, MembraneModel):
             raise InputError(f"model: expected a MembraneModel, got {type(model).__name__}")
         self.model = model
-        self.settings = JEKFSettings.seed() if settings is None else settings
-        if not isinstance(self.settings, JEKFSettings):
-            raise InputError(f"settings: expected JEKFSettings, got {type(self.settings).__name__}")
-        self.dt = float(model.problem.identification.dt if dt is None else dt)
+        settings = JEKFSettings.seed() if settings is None else settings
+        if not isinstance(settings, JEKFSettings):
+            raise InputError(f"settings: expected JEKFSettings, got {type(settings).__name__}")
+        self.settings = with_declaration(settings, model.problem)
+        self.dt = float(self.settings.declaration.dt if dt is None else dt)
         _as_positive("dt", self.dt)
         self.n = model.n
         self.prior = JointPrior(model, self.settings)  # initial covariance and guess
@@ -391,7 +393,3 @@ class JointEKF:
             T = self._areal * self._phi
             return T @ Pg @ T.T
         return Pg.copy()
-
-    def run(self, measurements: Measurements, setup: bool = True, progress: bool = False) -> IdentificationResult:
-        """Filter a whole record (:func:`~wingopt.estimation.jekf.batch.filter_record`)."""
-        return filter_record(self, measurements, setup, progress)

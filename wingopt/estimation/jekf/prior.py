@@ -14,6 +14,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from wingopt.errors import SolverError
+from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.jekf.settings import DEFAULT_PEAK, JEKFSettings
 from wingopt.membrane.loads import bubble
 from wingopt.membrane.model import MembraneModel
@@ -29,11 +30,12 @@ class JointPrior:
     model : MembraneModel
         The filter's model (the prior is in its load and deflection coefficients).
     settings : JEKFSettings
-        ``regularization``, ``load_std``, ``initial_load``, ``initial_peak`` and ``sign_prior`` are read.
+        ``regularization``, ``load_std``, ``initial_load``, ``initial_peak``, ``sign_prior`` and the
+        ``declaration`` (filled from the model's problem when ``None``) are read.
     """
 
     def __init__(self, model: MembraneModel, settings: JEKFSettings) -> None:
-        self.model, self.settings = model, settings
+        self.model, self.settings = model, with_declaration(settings, model.problem)
         self.n = model.n
 
     def prior_load_covariance(self) -> np.ndarray:
@@ -52,15 +54,15 @@ class JointPrior:
     def initial_load_value(self) -> float:
         """Uniform prior mean of the pressure, Pa."""
         s = self.settings
-        return self.model.problem.identification.initial_load if s.initial_load is None else float(s.initial_load)
+        return s.declaration.initial_load if s.initial_load is None else float(s.initial_load)
 
     @property
     def initial_peak(self) -> float:
         """Signed peak of the initial bubble, m (see :class:`JEKFSettings`)."""
-        s, ident = self.settings, self.model.problem.identification
+        s, ident = self.settings, self.settings.declaration
         if s.initial_peak is not None:
             return float(s.initial_peak)
-        known = float(getattr(ident, "initial_deflection", 0.0) or 0.0)
+        known = float(ident.initial_deflection or 0.0)
         if known != 0.0:
             return known
         sign = s.sign_prior

@@ -11,6 +11,7 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation.options import option
+from wingopt.problem.membrane import IdentificationSettings
 
 __all__ = ["JEKFSettings", "SEED_MEASUREMENT_VARIANCE", "DEFAULT_PEAK"]
 
@@ -51,16 +52,16 @@ class JEKFSettings:
         :data:`~wingopt.estimation.noise.JEKF_NOISE`). Seed: ``1e-4``.
     initial_load : float or None
         Uniform prior mean of the pressure (Pa), projected onto the load space. ``None``: the
-        problem's ``identification.initial_load`` (the seed's 200 Pa); ``0.0``: zero initial load.
+        declared ``initial_load`` (:attr:`declaration`; the seed's 200 Pa); ``0.0``: zero initial load.
     initial_peak : float or None
         Signed peak (m) of the initial bubble ``16 xi (1 - xi) eta (1 - eta)``, the prior mean of
         the initial deflection. It fixes the sign of the estimate (the data are unchanged when the
-        initial state and the load both flip). ``None``: the problem's
-        ``identification.initial_deflection`` when non-zero (the protocol's 1 cm), else 1 cm with
+        initial state and the load both flip). ``None``: the declared
+        ``initial_deflection`` when non-zero (the protocol's 1 cm), else 1 cm with
         the sign of :attr:`sign_prior`.
     sign_prior : float or None
         Sign prior of the load (Pa; only its sign is used) when ``initial_peak`` is not known;
-        ``None``: ``initial_load`` if non-zero, else the problem's ``initial_load``.
+        ``None``: ``initial_load`` if non-zero, else the declared ``initial_load``.
     load_std : float
         ``sqrt`` of the diagonal of ``P0d_tilde`` (Pa per coefficient); ``inf`` (default): no
         prior beyond ``lambda Lam``.
@@ -79,6 +80,11 @@ class JEKFSettings:
     symmetrize_every : int
         Re-symmetrise ``P`` every this many steps (round-off only: the updates are symmetric in exact
         arithmetic; ``1`` = every step).
+    declaration : IdentificationSettings or None
+        What the problem file declares for identification (its ``[identification]``: the sample
+        period, the noise, the initial load and shape). The builder fills it from the problem
+        (:func:`~wingopt.estimation.declaration.with_declaration`), and so does :class:`JointEKF`
+        when it is still ``None``; a caller may give its own. The filter reads it here, never the problem.
     """
 
     regularization: float = field(default=1.0, metadata=option("lam"))
@@ -94,6 +100,7 @@ class JEKFSettings:
     modes: int | None = field(default=None, metadata=option("modes"))
     structure: str = "modal"
     symmetrize_every: int = 25
+    declaration: IdentificationSettings | None = None
 
     def __post_init__(self) -> None:
         _as_positive("regularization", self.regularization)

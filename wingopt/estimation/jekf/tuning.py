@@ -27,8 +27,9 @@ Two ways of choosing the regularisation weight ``lambda`` of ``P0_d = (P0d_tilde
   ``"quasi-optimality"``: minimise the change of the final load between neighbouring grid values,
       ``||f(lambda_{i+1}) - f(lambda_i)||_L2``.
 
-The noise level: ``R`` comes from the settings, else ``Measurements.noise_std``, else the problem's
-``identification.noise_std``, else :func:`estimate_noise_std` (robust scale of third differences).
+The noise level: ``R`` comes from the settings, else ``Measurements.noise_std``, else the declared
+``noise_std`` (the settings' ``declaration``: the problem's ``[identification]``), else
+:func:`estimate_noise_std` (robust scale of third differences).
 """
 
 from __future__ import annotations
@@ -43,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from wingopt.errors import InputError
+from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.distributions import chi2_ppf
 from wingopt.estimation.jekf.filter import JointEKF
 from wingopt.estimation.jekf.settings import JEKFSettings
@@ -166,7 +168,8 @@ def select_lambda(
     measurements : Measurements
         The record; ``R`` is fixed once (see :func:`noise_variance`) for all ``lambda``.
     settings : JEKFSettings, optional
-        Default :meth:`JEKFSettings.tuned` (zero initial load, ``R`` from the data).
+        Default :meth:`JEKFSettings.tuned` (zero initial load, ``R`` from the data); its
+        ``declaration`` is filled from the model's problem when ``None``.
     rule : {"discrepancy", "evidence", "quasi-optimality"}
         See the module docstring.
     grid : sequence of float, optional
@@ -179,7 +182,36 @@ def select_lambda(
     window : float
         Fraction of the record (its end) used by the discrepancy rule.
     """
-    settings = JEKFSettings.tuned() if settings is None else settings
+    settings = with_declaration(JEKFSettings.tuned() if settings is None else settings, model.problem)
+    grid_arr = _checked_grid(rule, grid, refine, level, window)
+    R, R_source = _fixed_noise(model, measurements, settings)
+    t0 = time.perf_counter()
+    run = _Runner(model, measurements, settings, R, window, progress)
+    threshold = float("nan")
+    if rule == "discrepancy":
+        threshold = float(chi2_ppf(level, len(model.sensors)))
+        chosen = _by_discrepancy(run, grid_arr, int(refine), threshold)
+    elif rule == "evidence":
+        chosen = _by_evidence(run, grid_arr, int(refine))
+    else:
+        chosen = _by_quasi_optimality(run, grid_arr)
+    edge = _grid_edge(run, chosen, rule)
+    table = _table(run)
+    result = run.results[chosen]
+    wall = time.perf_counter() - t0
+    log.info("jekf lambda (%s): %.3g after %d runs in %.1f s", rule, chosen, len(run.stats), wall)
+    info = {
+        "R": [float(r) for r in R],
+        "R_source": R_source,
+        "level": level,
+        "window": window,
+        "at_grid_edge": edge or None,
+    }
+    return LambdaSelection(chosen, rule, result, table, threshold, wall, info)
+
+
+def _checked_grid(rule: str, grid, refine: int, level: float, window: float) -> np.ndarray:
+    """The candidate lambdas, ascending, after the arguments of :func:`select_lambda` are checked."""
     if rule not in LAMBDA_RULES:
         raise InputError(f"rule = {rule!r}: expected one of {', '.join(LAMBDA_RULES)}")
     grid_arr = np.sort(np.asarray(DEFAULT_GRID if grid is None else grid, dtype=float))
@@ -191,72 +223,91 @@ def select_lambda(
         raise InputError(f"window = {window!r}: expected a fraction of the record in (0, 1]")
     if int(refine) != refine or refine < 0:
         raise InputError(f"refine = {refine!r}: expected a non-negative integer")
+    return grid_arr
+
+
+def _fixed_noise(model: MembraneModel, measurements: Measurements, settings: JEKFSettings) -> tuple[np.ndarray, str]:
+    """``R``, fixed once for every lambda, and where it came from (the settings, else :func:`noise_variance`)."""
     if settings.measurement_variance is not None:
-        R = np.broadcast_to(np.asarray(settings.measurement_variance, float), (len(model.sensors),))
-        R_source = "settings"
-    else:
-        R, R_source = noise_variance(measurements, model.problem.identification.noise_std, JEKF_NOISE)
-    t0 = time.perf_counter()
-    run = _Runner(model, measurements, settings, R, window, progress)
-    p = len(model.sensors)
-    threshold = float("nan")
+        return np.broadcast_to(np.asarray(settings.measurement_variance, float), (len(model.sensors),)), "settings"
+    return noise_variance(measurements, settings.declaration.noise_std, JEKF_NOISE)
 
-    if rule == "discrepancy":
-        threshold = float(chi2_ppf(level, p))
 
-        def accepted(lam: float) -> bool:
-            best = min(s["late_chi2"] for s in run.stats.values())
-            return run(lam)["late_chi2"] - best <= threshold
+def _log_midpoint(a: float, b: float) -> float:
+    return float(10.0 ** (0.5 * (math.log10(a) + math.log10(b))))
 
-        lo, hi = None, None
-        for lam in grid_arr:
-            run(lam)
-            if accepted(lam):
-                lo = lam
-            else:
-                hi = lam
-                break
-        if lo is None:  # the smallest lambda already fits worse than later ones: take the best fit
-            lo = min(run.stats, key=lambda k: run.stats[k]["late_chi2"])
-        elif hi is not None:
-            for _ in range(int(refine)):
-                mid = float(10.0 ** (0.5 * (math.log10(lo) + math.log10(hi))))
-                run(mid)
-                lo, hi = (mid, hi) if accepted(mid) else (lo, mid)
-        # the reference may have dropped during the scan: the choice must still pass
-        while not accepted(lo):
-            smaller = [k for k in run.stats if k < lo]
-            if not smaller:
-                break
-            lo = max(smaller)
-        chosen = lo
-    elif rule == "evidence":
-        for lam in grid_arr:
-            run(lam)
+
+def _by_discrepancy(run: _Runner, grid: np.ndarray, refine: int, threshold: float) -> float:
+    """The largest lambda whose late fit is within ``threshold`` of the best one (module docstring):
+    scanned upwards, then bisected between the last accepted and the first rejected value."""
+
+    def accepted(lam: float) -> bool:
+        best = min(s["late_chi2"] for s in run.stats.values())
+        return run(lam)["late_chi2"] - best <= threshold
+
+    lo, hi = None, None
+    for lam in grid:
+        run(lam)
+        if accepted(lam):
+            lo = lam
+        else:
+            hi = lam
+            break
+    if lo is None:  # the smallest lambda already fits worse than later ones: take the best fit
+        lo = min(run.stats, key=lambda k: run.stats[k]["late_chi2"])
+    elif hi is not None:
+        for _ in range(refine):
+            mid = _log_midpoint(lo, hi)
+            run(mid)
+            lo, hi = (mid, hi) if accepted(mid) else (lo, mid)
+    # the reference may have dropped during the scan: the choice must still pass
+    while not accepted(lo):
+        smaller = [k for k in run.stats if k < lo]
+        if not smaller:
+            break
+        lo = max(smaller)
+    return lo
+
+
+def _by_evidence(run: _Runner, grid: np.ndarray, refine: int) -> float:
+    """The lambda of the largest log-likelihood, refined by bisection around the best value."""
+    for lam in grid:
+        run(lam)
+    for _ in range(refine):
         lams = sorted(run.stats)
-        for _ in range(int(refine)):
-            lams = sorted(run.stats)
-            i = int(np.argmax([run.stats[k]["loglik"] for k in lams]))
-            for j in (i - 1, i + 1):
-                if 0 <= j < len(lams):
-                    run(float(10.0 ** (0.5 * (math.log10(lams[i]) + math.log10(lams[j])))))
-        lams = sorted(run.stats)
-        chosen = lams[int(np.argmax([run.stats[k]["loglik"] for k in lams]))]
-    else:  # quasi-optimality
-        for lam in grid_arr:
-            run(lam)
-        lams = sorted(run.stats)
-        steps = [run.final_change(a, b) for a, b in zip(lams[:-1], lams[1:])]
-        chosen = lams[int(np.argmin(steps))]
-
+        i = int(np.argmax([run.stats[k]["loglik"] for k in lams]))
+        for j in (i - 1, i + 1):
+            if 0 <= j < len(lams):
+                run(_log_midpoint(lams[i], lams[j]))
     lams = sorted(run.stats)
-    edge = ""
-    if chosen == lams[0] or chosen == lams[-1]:
-        edge = "smallest" if chosen == lams[0] else "largest"
-        log.warning("jekf lambda (%s): chose the %s value tried (%.3g); consider a wider grid", rule, edge, chosen)
+    return lams[int(np.argmax([run.stats[k]["loglik"] for k in lams]))]
+
+
+def _by_quasi_optimality(run: _Runner, grid: np.ndarray) -> float:
+    """The lambda after which the final load changes least."""
+    for lam in grid:
+        run(lam)
+    lams = sorted(run.stats)
+    steps = [run.final_change(a, b) for a, b in zip(lams[:-1], lams[1:])]
+    return lams[int(np.argmin(steps))]
+
+
+def _grid_edge(run: _Runner, chosen: float, rule: str) -> str:
+    """``"smallest"`` or ``"largest"`` when ``chosen`` is at the edge of the values tried (warned), else ``""``."""
+    lams = sorted(run.stats)
+    if chosen != lams[0] and chosen != lams[-1]:
+        return ""
+    edge = "smallest" if chosen == lams[0] else "largest"
+    log.warning("jekf lambda (%s): chose the %s value tried (%.3g); consider a wider grid", rule, edge, chosen)
+    return edge
+
+
+def _table(run: _Runner) -> dict[str, np.ndarray]:
+    """One entry per lambda tried, ascending (:attr:`LambdaSelection.table`)."""
+    lams = sorted(run.stats)
     best = min(s["late_chi2"] for s in run.stats.values())
     steps = [run.final_change(a, b) for a, b in zip(lams[:-1], lams[1:])] + [float("nan")]
-    table = {
+    return {
         "lambda": np.array(lams),
         "late_chi2": np.array([run.stats[k]["late_chi2"] for k in lams]),
         "late_count": np.array([run.stats[k]["late_count"] for k in lams], dtype=float),
@@ -266,24 +317,6 @@ def select_lambda(
         "lift": np.array([run.stats[k]["lift"] for k in lams]),
         "step_change": np.array(steps),
     }
-    result = run.results[chosen]
-    wall = time.perf_counter() - t0
-    log.info("jekf lambda (%s): %.3g after %d runs in %.1f s", rule, chosen, len(lams), wall)
-    return LambdaSelection(
-        chosen,
-        rule,
-        result,
-        table,
-        threshold,
-        wall,
-        {
-            "R": [float(r) for r in R],
-            "R_source": R_source,
-            "level": level,
-            "window": window,
-            "at_grid_edge": edge or None,
-        },
-    )
 
 
 def tuned_identify(

@@ -31,10 +31,10 @@ Step-able use (PyLops style)::
 or one shot: ``mhe_identify(model, measurements, settings)``.
 
 **Sign.** Stretch sensors are sign-blind: a load and its negative give the same data (with the
-initial state negated too). The sign is fixed by the prior, explicitly: the problem's
+initial state negated too). The sign is fixed by the prior, explicitly: the declared
 ``initial_load`` (the estimate's load must correlate positively with it) and, when known, the
 prior initial deflection (``initial_deflection``, the protocol's bubble). See
-:mod:`wingopt.estimation.mhe.start`.
+:mod:`wingopt.estimation.mhe.cold_start`.
 """
 
 from __future__ import annotations
@@ -46,14 +46,15 @@ from typing import Any
 import numpy as np
 
 from wingopt.errors import InputError
+from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.load_space import build_load_space
+from wingopt.estimation.mhe.cold_start import initial_priors
 from wingopt.estimation.mhe.consistency import first_inconsistent
 from wingopt.estimation.mhe.information import WindowPrior
 from wingopt.estimation.mhe.model import MHEModel
 from wingopt.estimation.mhe.record import weighted_record
 from wingopt.estimation.mhe.settings import LOAD_MODELS, SIGN_MARGIN, STATE_PRIOR_EVIDENCE, MHESettings
 from wingopt.estimation.mhe.solvers import NumpySolver, WindowSolution, make_solver
-from wingopt.estimation.mhe.start import initial_priors
 from wingopt.estimation.mhe.startup import StartUp
 from wingopt.estimation.mhe.window import WindowProblem
 from wingopt.estimation.result import IdentificationResult
@@ -78,6 +79,7 @@ class MovingHorizonEstimator:
     model : MembraneModel
         The estimator's model (its mesh is the estimation mesh).
     settings : MHESettings
+        Default :class:`MHESettings`; its ``declaration`` is filled from the model's problem when ``None``.
 
     Notes
     -----
@@ -94,10 +96,10 @@ class MovingHorizonEstimator:
         if settings is not None and not isinstance(settings, MHESettings):
             raise InputError(f"settings = {settings!r}: expected an MHESettings or None")
         self.model = model
-        self.settings = settings or MHESettings()
+        self.settings = with_declaration(settings or MHESettings(), model.problem)
         s = self.settings
         self.load_space = build_load_space(model, s.load_space)
-        self.reduced = MHEModel.build(model, self.load_space, s.modes)
+        self.reduced = MHEModel.build(model, self.load_space, s.modes, s.declaration.dt)
         self.solver = make_solver(s.backend, s.qp_solver, max_iterations=s.max_iterations, tolerance=s.tolerance)
         # The start-up's coarse problem is tiny and always solved with the fast dense solver.
         self._coarse_solver = NumpySolver(max_iterations=200, tolerance=s.tolerance)
@@ -125,18 +127,18 @@ class MovingHorizonEstimator:
         measurements : Measurements
             Uniformly sampled; NaN entries are missing samples (weight 0).
         noise_std : float or array, optional
-            Sensor noise std; default: the measurements', else the problem's ``noise_std``, else
-            estimated from the data (:func:`~wingopt.estimation.noise.estimate_noise_std`).
+            Sensor noise std; default: the measurements', else the declared ``noise_std``
+            (``settings.declaration``), else estimated from the data
+            (:func:`~wingopt.estimation.noise.estimate_noise_std`).
         initial_load : float, optional
-            Sign prior (Pa); default: the problem's ``identification.initial_load``.
+            Sign prior (Pa); default: the declared ``initial_load``.
         initial_deflection : float, optional
-            Peak (m) of the prior initial bubble; ``0``: unknown. Default: the problem's
-            ``identification.initial_deflection`` when it has one, else 0.
+            Peak (m) of the prior initial bubble; ``0``: unknown. Default: the declared
+            ``initial_deflection``.
         """
         t0 = time.perf_counter()
         s, red = self.settings, self.reduced
-        problem = self.model.problem
-        ident = problem.identification
+        problem, ident = self.model.problem, s.declaration
         rec = weighted_record(measurements, problem.sensor_names, noise_std, ident.noise_std)
         dt = rec.dt
         if abs(dt - red.dt) > 1e-9 * red.dt:
@@ -154,7 +156,7 @@ class MovingHorizonEstimator:
         p0 = ident.initial_load if initial_load is None else float(initial_load)
         if p0 == 0 or not np.isfinite(p0):
             raise InputError(f"initial_load = {p0!r}: expected a non-zero pressure (its sign fixes the sign)")
-        peak = getattr(ident, "initial_deflection", 0.0) if initial_deflection is None else initial_deflection
+        peak = ident.initial_deflection if initial_deflection is None else initial_deflection
         self.initial_load, self.initial_deflection = p0, float(peak)
         sign_prior, x_prior = initial_priors(self.model, self.load_space, red, p0, self.initial_deflection)
         # Window geometry (seconds or samples, see MHESettings.samples).

@@ -83,81 +83,24 @@ class IpoptSolver(WindowSolver):
         self._cache: dict = {}
 
     def _build(self, problem: WindowProblem, hessian: str):
+        """The compiled IPOPT solver of windows shaped like ``problem``, built once per shape."""
         import casadi as ca
 
         red, basis = problem.reduced, problem.basis
-        N, p, m, B = basis.length, red.p, red.m, basis.blocks
-        n = problem.dim
         nb = 0 if problem.bounds is None else problem.bounds.A.shape[0]
-        key = (id(red), N, B, n, nb, hessian)
+        key = (id(red), basis.length, basis.blocks, problem.dim, nb, hessian)
         if key in self._cache:
             return self._cache[key]
-        z = ca.MX.sym("z", n)
-        P_y = ca.MX.sym("y", N, p)
-        P_w = ca.MX.sym("w", N, p)
-        P_H = ca.MX.sym("H", n, n)
-        P_g = ca.MX.sym("g", n)
-        P_D = ca.MX.sym("D", n)
-        P_P = ca.MX.sym("P", n, n)
-        P_x0 = ca.MX.sym("xi0", n)
-        xi = P_x0 + ca.mtimes(P_P, z)
-        theta = xi * P_D
-        q0, v0 = theta[:m], theta[m : 2 * m]
-        Q = ca.DM(basis.a) * ca.repmat(q0.T, N, 1) + ca.DM(basis.b) * ca.repmat(v0.T, N, 1)
-        for blk in range(B):
-            ub = theta[(2 + blk) * m : (3 + blk) * m]
-            Q = Q + ca.DM(basis.c[blk]) * ca.repmat(ub.T, N, 1)
-        data = 0
-        seqs = [ca.DM(basis.a), ca.DM(basis.b)] + [ca.DM(basis.c[blk]) for blk in range(B)]
-        JWJ = ca.MX.zeros(n, n)
-        second = [[ca.MX.zeros(m, m) for _ in seqs] for _ in seqs]
-        for s in range(p):
-            C = ca.DM(red.sensor_matrices[s])
-            CQ = ca.mtimes(Q, C)
-            h = ca.sum2(CQ * Q)
-            r = P_y[:, s] - h
-            data = data + ca.sumsqr(ca.sqrt(P_w[:, s]) * r)
-            if hessian == "analytic":
-                # Analytic exact Hessian pieces (far cheaper than automatic differentiation):
-                # dh/dtheta = 2 [CQ*a, CQ*b, CQ*c_b], d2h = 2 P_k^T C P_k per sample.
-                J = ca.horzcat(*[2 * CQ * S for S in seqs])
-                JWJ = JWJ + ca.mtimes(J.T, J * ca.repmat(P_w[:, s], 1, n))
-                rho = P_w[:, s] * r
-                for i, Si in enumerate(seqs):
-                    left = (Si * ca.repmat(rho, 1, m)).T
-                    for j in range(i, len(seqs)):
-                        second[i][j] = second[i][j] + C * ca.mtimes(left, seqs[j])
-        # The quadratic part, re-centred at the start and in the preconditioned unknowns
-        # (H_z = P^T H_s P, g_z = P^T (H_s xi0 - g_s)), so no large constants cancel in it.
-        f = data + ca.mtimes([z.T, P_H, z]) + 2 * ca.dot(P_g, z)
-        params = ca.vertcat(ca.vec(P_y), ca.vec(P_w), ca.vec(P_H), P_g, P_D, ca.vec(P_P), P_x0)
-        g = []
-        if nb:
-            P_A = ca.MX.sym("A", nb, n)
-            params = ca.vertcat(params, ca.vec(P_A))
-            g = ca.mtimes(P_A, xi)
-        if hessian == "reuse":
-            # The exact Hessian in z at the window's start, a parameter: constant during the solve.
-            P_K = ca.MX.sym("K", n, n)
-            params = ca.vertcat(params, ca.vec(P_K))
-        nlp = {"x": z, "p": params, "f": f}
-        if nb:
-            nlp["g"] = g
-        hess = None
-        lam_f = ca.MX.sym("lam_f")
-        lam_g = ca.MX.sym("lam_g", nb if nb else 0)
-        if hessian == "reuse":
-            hess = ca.Function(
-                "hess_lag", [z, params, lam_f, lam_g], [ca.triu(lam_f * P_K)], ["x", "p", "lam_f", "lam_g"], ["hess"]
-            )
-        if hessian == "analytic":
-            blocks = [[second[i][j] if j >= i else second[j][i].T for j in range(len(seqs))] for i in range(len(seqs))]
-            H_theta = 2 * JWJ - 4 * ca.blockcat(blocks)
-            DP = ca.repmat(P_D, 1, n) * P_P  # d theta / d z = diag(D) P
-            H_z = ca.mtimes([DP.T, H_theta, DP]) + 2 * P_H
-            hess = ca.Function(
-                "hess_lag", [z, params, lam_f, lam_g], [ca.triu(lam_f * H_z)], ["x", "p", "lam_f", "lam_g"], ["hess"]
-            )
+        nlp, hess = _window_nlp(ca, problem, nb, hessian)
+        opts = {"print_time": False, "ipopt": self._ipopt_options(nb, hessian)}
+        if hess is not None:
+            opts["hess_lag"] = hess
+        solver = ca.nlpsol("mhe_window", "ipopt", nlp, opts)
+        self._cache[key] = solver
+        return solver
+
+    def _ipopt_options(self, nb: int, hessian: str) -> dict:
+        """IPOPT's options for a window with ``nb`` linear bounds and the ``hessian`` kind."""
         iterations = min(self.max_iterations, REUSE_ITERATIONS) if hessian == "reuse" else self.max_iterations
         ipopt = ipopt_options(1e-8, iterations, self.print_level, acceptable_tol=1e-6)
         if not nb:
@@ -166,12 +109,7 @@ class IpoptSolver(WindowSolver):
             ipopt.update(jac_c_constant="yes", jac_d_constant="yes")
         if hessian == "reuse":
             ipopt["hessian_constant"] = "yes"
-        opts = {"print_time": False, "ipopt": ipopt}
-        if hess is not None:
-            opts["hess_lag"] = hess
-        solver = ca.nlpsol("mhe_window", "ipopt", nlp, opts)
-        self._cache[key] = solver
-        return solver
+        return ipopt
 
     def solve(self, problem: WindowProblem, theta0: np.ndarray) -> WindowSolution:
         t0 = time.perf_counter()
@@ -251,3 +189,85 @@ class IpoptSolver(WindowSolver):
         raw = stats.get("return_status", "unknown")
         theta = D * (xi0 + P @ np.asarray(res["x"]).ravel())
         return theta, raw, int(stats.get("iter_count", 0))
+
+
+def _window_nlp(ca, problem: WindowProblem, nb: int, hessian: str):
+    """The window's NLP in the preconditioned unknowns ``z`` with its data as parameters, and the
+    Hessian of its Lagrangian handed to IPOPT (``None``: CasADi's automatic one, ``hessian="ad"``)."""
+    N, p = problem.basis.length, problem.reduced.p
+    n = problem.dim
+    z = ca.MX.sym("z", n)
+    P_y = ca.MX.sym("y", N, p)
+    P_w = ca.MX.sym("w", N, p)
+    P_H = ca.MX.sym("H", n, n)
+    P_g = ca.MX.sym("g", n)
+    P_D = ca.MX.sym("D", n)
+    P_P = ca.MX.sym("P", n, n)
+    P_x0 = ca.MX.sym("xi0", n)
+    xi = P_x0 + ca.mtimes(P_P, z)
+    data, JWJ, second, seqs = _data_misfit(ca, problem, xi * P_D, P_y, P_w, hessian == "analytic")
+    # The quadratic part, re-centred at the start and in the preconditioned unknowns
+    # (H_z = P^T H_s P, g_z = P^T (H_s xi0 - g_s)), so no large constants cancel in it.
+    f = data + ca.mtimes([z.T, P_H, z]) + 2 * ca.dot(P_g, z)
+    params = ca.vertcat(ca.vec(P_y), ca.vec(P_w), ca.vec(P_H), P_g, P_D, ca.vec(P_P), P_x0)
+    g = []
+    if nb:
+        P_A = ca.MX.sym("A", nb, n)
+        params = ca.vertcat(params, ca.vec(P_A))
+        g = ca.mtimes(P_A, xi)
+    if hessian == "reuse":
+        # The exact Hessian in z at the window's start, a parameter: constant during the solve.
+        P_K = ca.MX.sym("K", n, n)
+        params = ca.vertcat(params, ca.vec(P_K))
+    nlp = {"x": z, "p": params, "f": f}
+    if nb:
+        nlp["g"] = g
+    lam_f = ca.MX.sym("lam_f")
+    lam_g = ca.MX.sym("lam_g", nb if nb else 0)
+    if hessian == "reuse":
+        H_z = P_K
+    elif hessian == "analytic":
+        blocks = [[second[i][j] if j >= i else second[j][i].T for j in range(len(seqs))] for i in range(len(seqs))]
+        H_theta = 2 * JWJ - 4 * ca.blockcat(blocks)
+        DP = ca.repmat(P_D, 1, n) * P_P  # d theta / d z = diag(D) P
+        H_z = ca.mtimes([DP.T, H_theta, DP]) + 2 * P_H
+    else:
+        return nlp, None
+    hess = ca.Function(
+        "hess_lag", [z, params, lam_f, lam_g], [ca.triu(lam_f * H_z)], ["x", "p", "lam_f", "lam_g"], ["hess"]
+    )
+    return nlp, hess
+
+
+def _data_misfit(ca, problem: WindowProblem, theta, P_y, P_w, analytic: bool):
+    """The window's weighted data misfit in ``theta``; with ``analytic``, the pieces of its exact
+    Hessian too: ``J^T W J``, the residual-weighted sensor blocks, and the response sequences."""
+    red, basis = problem.reduced, problem.basis
+    N, p, m, B = basis.length, red.p, red.m, basis.blocks
+    n = problem.dim
+    q0, v0 = theta[:m], theta[m : 2 * m]
+    Q = ca.DM(basis.a) * ca.repmat(q0.T, N, 1) + ca.DM(basis.b) * ca.repmat(v0.T, N, 1)
+    for blk in range(B):
+        ub = theta[(2 + blk) * m : (3 + blk) * m]
+        Q = Q + ca.DM(basis.c[blk]) * ca.repmat(ub.T, N, 1)
+    data = 0
+    seqs = [ca.DM(basis.a), ca.DM(basis.b)] + [ca.DM(basis.c[blk]) for blk in range(B)]
+    JWJ = ca.MX.zeros(n, n)
+    second = [[ca.MX.zeros(m, m) for _ in seqs] for _ in seqs]
+    for s in range(p):
+        C = ca.DM(red.sensor_matrices[s])
+        CQ = ca.mtimes(Q, C)
+        h = ca.sum2(CQ * Q)
+        r = P_y[:, s] - h
+        data = data + ca.sumsqr(ca.sqrt(P_w[:, s]) * r)
+        if analytic:
+            # Analytic exact Hessian pieces (far cheaper than automatic differentiation):
+            # dh/dtheta = 2 [CQ*a, CQ*b, CQ*c_b], d2h = 2 P_k^T C P_k per sample.
+            J = ca.horzcat(*[2 * CQ * S for S in seqs])
+            JWJ = JWJ + ca.mtimes(J.T, J * ca.repmat(P_w[:, s], 1, n))
+            rho = P_w[:, s] * r
+            for i, Si in enumerate(seqs):
+                left = (Si * ca.repmat(rho, 1, m)).T
+                for j in range(i, len(seqs)):
+                    second[i][j] = second[i][j] + C * ca.mtimes(left, seqs[j])
+    return data, JWJ, second, seqs

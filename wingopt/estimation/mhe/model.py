@@ -36,6 +36,7 @@ import scipy.sparse.linalg as spla
 
 from wingopt.dynamics.reduction import static_residual
 from wingopt.errors import InputError
+from wingopt.estimation.declaration import declaration_of
 from wingopt.estimation.load_space import LoadSpace
 from wingopt.membrane import MembraneModel
 
@@ -121,12 +122,13 @@ class MHEModel:
     def build(
         cls, model: MembraneModel, load_space: LoadSpace, modes: int | None = 60, dt: float | None = None
     ) -> MHEModel:
-        """Reduce ``model`` to its lowest ``modes`` modes (``None``: all) at sample period ``dt``."""
+        """Reduce ``model`` to its lowest ``modes`` modes (``None``: all) at sample period ``dt``
+        (default: the one its problem declares; the estimators pass their settings' ``declaration.dt``)."""
         n = model.n
         modes = n if modes is None else int(modes)
         if not 1 <= modes <= n:
             raise InputError(f"modes = {modes}: expected 1..{n} for this mesh")
-        dt = model.problem.identification.dt if dt is None else float(dt)
+        dt = declaration_of(model.problem).dt if dt is None else float(dt)
         modal = model.modal(modes)
         disc = modal.discretize(dt)
         Phi = modal.shapes

@@ -15,6 +15,7 @@ from wingopt.estimation.mhe.solvers import WINDOW_SOLVERS
 from wingopt.estimation.options import option
 from wingopt.estimation.regularization import LambdaRule
 from wingopt.optim.registry import solver_names
+from wingopt.problem.membrane import IdentificationSettings
 
 __all__ = ["MHESettings", "LOAD_MODELS", "STATE_PRIOR_EVIDENCE", "SIGN_MARGIN"]
 
@@ -24,7 +25,7 @@ STATE_PRIOR_EVIDENCE = (1.0, 0.1, 0.01, 0.001)
 """Candidates of ``MHESettings.state_prior_choices`` for the evidence-chosen state prior."""
 
 SIGN_MARGIN = 0.1
-"""Below this agreement with the prior (:func:`~wingopt.estimation.mhe.start.sign_score`) the sign
+"""Below this agreement with the prior (:func:`~wingopt.estimation.mhe.cold_start.sign_score`) the sign
 is reported as undetermined (e.g. L2, no net lift, without an initial-deflection prior)."""
 
 
@@ -125,7 +126,13 @@ class MHESettings:
     max_iterations, tolerance : int, float
         Window solver limits; ``tolerance`` in chi-square units.
     start_shapes, start_state_modes, start_amplitudes : int
-        Size of the start-up scan and coarse problem (:func:`~wingopt.estimation.mhe.start.start_window`).
+        Size of the start-up scan and coarse problem (:func:`~wingopt.estimation.mhe.cold_start.start_window`).
+    declaration : IdentificationSettings or None
+        What the problem file declares for identification (its ``[identification]``: the sample
+        period, the noise, the sign prior ``initial_load`` and ``initial_deflection``). The builder
+        fills it from the problem (:func:`~wingopt.estimation.declaration.with_declaration`), and so
+        does :class:`MovingHorizonEstimator` when it is still ``None``; a caller may give its own.
+        The estimator reads it here, never the problem.
     """
 
     window_s: float = 0.2
@@ -155,6 +162,7 @@ class MHESettings:
     start_shapes: int = 3
     start_state_modes: int = 4
     start_amplitudes: int = 16
+    declaration: IdentificationSettings | None = None
 
     def __post_init__(self) -> None:
         def bad(name, expected):

@@ -15,13 +15,13 @@ import logging
 import numpy as np
 import scipy.linalg as sla
 
+from wingopt.estimation.mhe.cold_start import SignPrior, StartReport, smooth_load_shapes, start_window
 from wingopt.estimation.mhe.consistency import SegmentProfile, leading_onset, segment_profile
 from wingopt.estimation.mhe.information import WindowPrior
 from wingopt.estimation.mhe.lambda_path import lambda_path, natural_scale
 from wingopt.estimation.mhe.record import Record
 from wingopt.estimation.mhe.settings import MHESettings
 from wingopt.estimation.mhe.solvers import WindowSolution, WindowSolver
-from wingopt.estimation.mhe.start import SignPrior, StartReport, smooth_load_shapes, start_window
 from wingopt.estimation.mhe.window import WindowProblem
 
 __all__ = ["StartUp"]

@@ -21,10 +21,10 @@ import scipy.sparse.linalg as spla
 
 from wingopt.errors import InputError
 from wingopt.estimation import wiring
-from wingopt.estimation.core.frame_check import FRAME_SHAPES
-from wingopt.estimation.core.load_model import LoadShapes
+from wingopt.estimation.core.load_prior import PriorScales, load_priors, prior_kinds
 from wingopt.estimation.core.record_problem import ParameterPrior
 from wingopt.estimation.core.record_settings import RecordSettings
+from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.result import IdentificationResult
 from wingopt.estimation.steady.buffeting_fit import UNIDENTIFIED, mean_prestrain
 from wingopt.estimation.steady.problem import SteadyProblem, steady_data
@@ -48,8 +48,24 @@ __all__ = ["steady_identify", "UNIDENTIFIED", "is_steady", "mean_moves"]
 
 log = logging.getLogger(__name__)
 
-EDGES = ("x0", "x1")
-"""Where the leading edge may be when the problem file does not say: ``x = 0`` or ``x = W``."""
+AUTO_PRIORS = ("frame", "aerodynamic")
+"""The load priors of a steady record whose problem file declares ``pressure_prior = "auto"``.
+
+A steady record's four means cannot tell a load that vanishes on the frame from one that acts up
+to it (a pressure near the frame hardly deflects the membrane, yet carries lift), and evidence
+then favours the narrower prior whatever the truth (measured: a uniform pressure read 42 % low at
+15 bands under the interior prior); so the frame prior is always one of ``auto``'s. Under it
+alone, though, the lift is set by the prior: the shapes the sensors do not resolve shrink to
+zero, and the lobes' signs stay open (measured on FvK truth, 25 vs 49x25 mesh: a leading-edge
+tunnel load 12 % low from its buffeting, 7 % low with a calibration). A tunnel record is an
+aerodynamic load, the seed's own complaint is a load map unlike aerodynamic theory, and the
+thin-airfoil shapes are three amplitudes that four sensors resolve: ``auto`` weighs both priors
+by evidence (at either leading edge unless the problem file declares it). A load of another
+shape (an off-centre bump, zero net lift) is not made by the aerodynamic shapes and the frame
+prior takes it; where the record cannot tell, the band holds both. ``aerodynamic`` alone is
+the user's assumption of a thin-airfoil load; ``interior`` (or the settings' ``frame = "off"``)
+a load that vanishes on the frame.
+"""
 
 
 STEADY_WINDOWS = 10
@@ -136,12 +152,13 @@ def _fluctuation(model: MembraneModel, sp_: SteadyProblem, theta, meas: Measurem
 def steady_identify(
     model: MembraneModel, measurements: Measurements, settings=None, initial_load: float | None = None
 ) -> IdentificationResult:
-    """The load of a steady record (see the module docstring); settings as the realistic estimator's."""
-    s = settings or RecordSettings(membrane_model="fvk")
+    """The load of a steady record (see the module docstring); settings as the transient fit's (their
+    ``declaration`` filled from ``model.problem`` when not given)."""
+    s = with_declaration(settings or RecordSettings(membrane_model="fvk"), model.problem)
     t0 = time.perf_counter()
-    problem, meas = model.problem, measurements
-    p0 = problem.identification.initial_load if initial_load is None else float(initial_load)
-    prior = ParameterPrior.from_problem(problem, s.free, s.prestrain_rel, s.damping_rel)
+    problem, meas, d = model.problem, measurements, s.declaration
+    p0 = d.initial_load if initial_load is None else float(initial_load)
+    prior = ParameterPrior.from_problem(problem, s.free, s.prestrain_rel, s.damping_rel, declaration=s.declaration)
     data = steady_data(meas.values)
     notes: list[str] = []
     try:
@@ -149,18 +166,22 @@ def steady_identify(
     except InputError as exc:  # uneven times, too many dropped frames: the mean still holds
         spectra = None
         notes.append(f"the record's spectrum is not used ({exc})")
-    kind = "interior" if s.frame == "off" else problem.identification.pressure_prior
-    sols, w, scr, f11 = _solve(model, _priors(model, p0, s, kind), data, spectra, prior, p0, s, notes)
-    if kind == "aerodynamic" and not sols[int(np.argmax(w))].adequate:
+    kinds = ("interior",) if s.frame == "off" else prior_kinds(d, AUTO_PRIORS)
+    scales = PriorScales.of(s)
+    priors = load_priors(model, kinds, p0, scales, d.leading_edge)
+    sols, w, scr, f11 = _solve(model, priors, data, spectra, prior, p0, s, notes)
+    if kinds == ("aerodynamic",) and not sols[int(np.argmax(w))].adequate:
         notes.append(
             "the aerodynamic load prior cannot make the sensors' mean: the answer is the frame prior's (a load "
             "that acts up to the frame)"
         )
-        sols, w, scr, f11 = _solve(model, _priors(model, p0, s, "frame"), data, spectra, prior, p0, s, notes)
+        priors = load_priors(model, ("frame",), p0, scales)
+        sols, w, scr, f11 = _solve(model, priors, data, spectra, prior, p0, s, notes)
     mean, std = mixture(w, sols)
     best = sols[int(np.argmax(w))]
     sp_, theta = best.problem, best.theta
-    warnings = notes + _warnings(best, sols, w, scr, problem)
+    calibrated = d.prestrain_std is not None
+    warnings = notes + _warnings(best, sols, w, scr, calibrated)
     eps, state = _fluctuation(model, sp_, theta, meas, data)
     c, _ = sp_.physical(theta)
     amp = 1.0 + np.nan_to_num(eps, nan=0.0)
@@ -170,7 +191,7 @@ def steady_identify(
             f"the load's mean moves over the record (a window's mean {move:.0%} off the record's median: a gust, a "
             "drift or a release): a steady record's answer is its mean load, not this record's"
         )
-    info = _info(best, sols, w, data, scr, f11, warnings)
+    info = _info(best, sols, w, data, scr, f11, warnings, calibrated)
     info["steady_lift_N"], info["steady_lift_std_N"] = mean, std
     info["mean_moves"] = {"moved": moved, "largest_window_move": move, "threshold": MOVING_MEAN}
     wiring.attach(info, model, meas.t, meas.values, s, p0)  # gains, offsets, swaps: warned, the answer kept
@@ -207,36 +228,8 @@ def _solve(model, priors, data, spectra, prior, p0, s, notes):
     return sols, weights(sols), scr, f11
 
 
-def _priors(model: MembraneModel, p0: float, s, kind: str) -> list[tuple[str, LoadShapes]]:
-    """The load priors of a steady record (``kind``: ``[identification] pressure_prior``).
-
-    A steady record's four means cannot tell a load that vanishes on the frame from one that acts up
-    to it (a pressure near the frame hardly deflects the membrane, yet carries lift), and evidence
-    then favours the narrower prior whatever the truth (measured: a uniform pressure read 42 % low at
-    15 bands under the interior prior); so the frame prior is always one of ``auto``'s. Under it
-    alone, though, the lift is set by the prior: the shapes the sensors do not resolve shrink to
-    zero, and the lobes' signs stay open (measured on FvK truth, 25 vs 49x25 mesh: a leading-edge
-    tunnel load 12 % low from its buffeting, 7 % low with a calibration). A tunnel record is an
-    aerodynamic load, the seed's own complaint is a load map unlike aerodynamic theory, and the
-    thin-airfoil shapes are three amplitudes that four sensors resolve: ``auto`` weighs both priors
-    by evidence (at either leading edge unless the problem file declares it). A load of another
-    shape (an off-centre bump, zero net lift) is not made by the aerodynamic shapes and the frame
-    prior takes it; where the record cannot tell, the band holds both. ``aerodynamic`` alone is
-    the user's assumption of a thin-airfoil load.
-    """
-    if kind == "interior":
-        return [("interior", LoadShapes.build(model, s.shapes, p0, s.kappa, s.prior_power))]
-    le = model.problem.identification.leading_edge
-    aero = [(f"aerodynamic {e}", LoadShapes.aerodynamic(model, p0, e, s.kappa)) for e in ((le,) if le else EDGES)]
-    if kind == "aerodynamic":
-        return aero
-    frame = [("frame", LoadShapes.build(model, s.shapes, p0, s.kappa, s.prior_power, FRAME_SHAPES))]
-    return frame + aero if kind == "auto" else frame
-
-
-def _warnings(best: Solution, sols: list[Solution], w: np.ndarray, scr, problem) -> list[str]:
+def _warnings(best: Solution, sols: list[Solution], w: np.ndarray, scr, calibrated: bool) -> list[str]:
     out = []
-    calibrated = problem.identification.prestrain_std is not None
     if best.buffeting is None and not calibrated and best.tension_ratio > UNIDENTIFIED:
         why = "no resonance above the noise floor near the first loaded mode" if scr is not None else "no spectrum"
         out.append(
@@ -283,9 +276,8 @@ def _warnings(best: Solution, sols: list[Solution], w: np.ndarray, scr, problem)
     return out
 
 
-def _info(best: Solution, sols, w, data, scr, f11: float, warnings: list[str]) -> dict:
+def _info(best: Solution, sols, w, data, scr, f11: float, warnings: list[str], calibrated: bool) -> dict:
     sp_ = best.problem
-    calibrated = sp_.model.problem.identification.prestrain_std is not None
     _, par = sp_.physical(best.theta)
     k = sp_.shapes.count
     cov = best.covariance

@@ -123,8 +123,8 @@ def behind(z_other: float) -> Rule:
         if not dec <= DECIDED_NATS:
             return None  # far from the local model's minimum: its predicted decrease is no bound
         reach = w.log_evidence() + 0.5 * dec
-        log.debug("iterate %d: evidence %.2f + %.2f predicted, other prior's %.2f", len(w.costs) - 1,
-                  reach - 0.5 * dec, 0.5 * dec, z_other)  # fmt: skip
+        z, k = reach - 0.5 * dec, len(w.costs) - 1
+        log.debug("iterate %d: evidence %.2f + %.2f predicted, other prior's %.2f", k, z, 0.5 * dec, z_other)
         if z_other - reach <= DECIDED_NATS:
             return None
         w.reach = reach

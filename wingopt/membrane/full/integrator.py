@@ -109,7 +109,7 @@ def integrate(
     h = dt / substeps
     E = step_matrices(model.rho_h, k, c, h)
     Phi, G0, G1 = E[:, :2, :2], E[:, :2, 2] - E[:, :2, 3], E[:, :2, 3]
-    Binv = np.linalg.inv((kappa * C / A) * np.array([[1.0, nu], [nu, 1.0]]))
+    jac = (lx, ly, kappa, C, nu, A, np.linalg.inv((kappa * C / A) * np.array([[1.0, nu], [nu, 1.0]])))
     times = np.arange(samples * substeps + 1) * h
     P = _load_samples(model, load, times)
     q = np.zeros(model.n) if z0 is None else modes.to_modal(np.asarray(z0, float))
@@ -125,34 +125,9 @@ def integrate(
             f0 = P[step] - N0
             base = Phi[:, 0, 0] * q + Phi[:, 0, 1] * v + G0[:, 0] * f0 + G1[:, 0] * P[step + 1]
             q1 = base - G1[:, 0] * (2 * N0 - Nprev)  # remainder extrapolated linearly in time
-            prev = np.inf
-            for _it in range(max_iter if nonlinear else 0):
-                N1 = remainder(q1)
-                r = q1 - base + G1[:, 0] * N1
-                # Berger Jacobian of the remainder at q1: diag(dTx lx + dTy ly) + U B U^T.
-                sx, sy = kappa * np.sum(lx * q1 * q1) / (2 * A), kappa * np.sum(ly * q1 * q1) / (2 * A)
-                delta = 1.0 + G1[:, 0] * (C * (sx + nu * sy) * lx + C * (sy + nu * sx) * ly)
-                U = np.column_stack([lx * q1, ly * q1])
-                Pm = (G1[:, 0] / delta)[:, None] * U
-                y = r / delta
-                dq = -(y - Pm @ np.linalg.solve(Binv + U.T @ Pm, U.T @ y))
-                q1 = q1 + dq
-                iters += 1
-                size = np.max(np.abs(dq))
-                if size <= tol * max(np.max(np.abs(q1)), 1e-300):
-                    break
-                if size > prev:
-                    raise SolverError(
-                        "membrane step", f"diverges at t = {times[step]:.4g} s", "reduce dt or add substeps"
-                    )
-                prev = size
-            else:
-                if nonlinear:
-                    raise SolverError(
-                        "membrane step",
-                        f"no convergence in {max_iter} iterations at t = {times[step]:.4g} s",
-                        "add substeps",
-                    )
+            if nonlinear:
+                q1, n_it = _newton(q1, base, remainder, G1[:, 0], jac, tol, max_iter, times[step])
+                iters += n_it
             N1 = remainder(q1)
             v = Phi[:, 1, 0] * q + Phi[:, 1, 1] * v + G0[:, 1] * f0 + G1[:, 1] * (P[step + 1] - N1)
             q, N0, Nprev = q1, N1, N0
@@ -160,3 +135,31 @@ def integrate(
         Q[s + 1], Vq[s + 1] = q, v
     log.debug("full-order %s: %d samples x %d substeps, %d iterations", type(model).__name__, samples, substeps, iters)
     return FullRecord(times[::substeps], modes.to_field(Q.T).T, modes.to_field(Vq.T).T, iters)
+
+
+def _newton(q1, base, remainder, g1, jac: tuple, tol: float, max_iter: int, t: float) -> tuple[np.ndarray, int]:
+    """Solve one implicit step ``q1 - base + g1 N(q1) = 0`` by Newton from ``q1``: the step and its iterations.
+
+    ``jac``: ``(lx, ly, kappa, C, nu, A, Binv)``, the Berger Jacobian's data (the remainder's Jacobian
+    at ``q1`` is ``diag(dTx lx + dTy ly) + U B U^T``, inverted by Woodbury). ``t``: the step's time (errors).
+    """
+    lx, ly, kappa, C, nu, A, Binv = jac
+    prev, iters = np.inf, 0
+    for _it in range(max_iter):
+        N1 = remainder(q1)
+        r = q1 - base + g1 * N1
+        sx, sy = kappa * np.sum(lx * q1 * q1) / (2 * A), kappa * np.sum(ly * q1 * q1) / (2 * A)
+        delta = 1.0 + g1 * (C * (sx + nu * sy) * lx + C * (sy + nu * sx) * ly)
+        U = np.column_stack([lx * q1, ly * q1])
+        Pm = (g1 / delta)[:, None] * U
+        y = r / delta
+        dq = -(y - Pm @ np.linalg.solve(Binv + U.T @ Pm, U.T @ y))
+        q1 = q1 + dq
+        iters += 1
+        size = np.max(np.abs(dq))
+        if size <= tol * max(np.max(np.abs(q1)), 1e-300):
+            return q1, iters
+        if size > prev:
+            raise SolverError("membrane step", f"diverges at t = {t:.4g} s", "reduce dt or add substeps")
+        prev = size
+    raise SolverError("membrane step", f"no convergence in {max_iter} iterations at t = {t:.4g} s", "add substeps")

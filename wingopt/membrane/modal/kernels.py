@@ -195,11 +195,25 @@ def _work(q, P, law):
     """Work arrays of :func:`_substep` (in ``q``'s dtype)."""
     m, r, rs, t = q.size, law[1], law[3].shape[0], q.dtype
     return (
-        np.empty((rs, rs), t), np.empty(m, t), np.empty(m, t), np.empty(m, t), np.empty(m, t), np.empty(m, t),
-        np.empty(m, t), np.empty(m, t), np.empty(m, t), np.empty((r, P), t), np.empty((r, P), t),
-        np.empty((r, P), t), np.empty((r, P), t), np.empty((r, P), t), np.empty((r, P), t), np.empty((m, P), t),
-        np.empty((m, P), t), np.empty(12, t),
-    )  # fmt: skip
+        np.empty((rs, rs), t),
+        np.empty(m, t),
+        np.empty(m, t),
+        np.empty(m, t),
+        np.empty(m, t),
+        np.empty(m, t),
+        np.empty(m, t),
+        np.empty(m, t),
+        np.empty(m, t),
+        np.empty((r, P), t),
+        np.empty((r, P), t),
+        np.empty((r, P), t),
+        np.empty((r, P), t),
+        np.empty((r, P), t),
+        np.empty((r, P), t),
+        np.empty((m, P), t),
+        np.empty((m, P), t),
+        np.empty(12, t),
+    )
 
 
 @njit(cache=True)

@@ -350,10 +350,8 @@ class Engine:
     def _submit(self, task: SweepTask, futures: dict, key: str, **placement):
         """Submit one task on the cluster, its shared inputs as futures (``placement``: priority, workers)."""
         shared = [futures[k] for k in task.shared]
-        return self.client.submit(
-            _execute, task.fn, task.key, task.args, *shared, key=key, retries=self.settings.retries, pure=False,
-            **placement,
-        )  # fmt: skip
+        options = {"key": key, "retries": self.settings.retries, "pure": False, **placement}
+        return self.client.submit(_execute, task.fn, task.key, task.args, *shared, **options)
 
     def _resubmit_stalled(self, by_future: dict, futures: dict, attempts: dict, run: str) -> Iterator[dict]:
         """Cancel the tasks the workers hold (all pending ones if none) and submit them again elsewhere."""

@@ -44,6 +44,8 @@ __all__ = [
     "build_model",
     "protocol_record",
     "task_cost",
+    "has_oracle",
+    "estimator",
     "protocol_tasks",
     "consistency_tasks",
     "CONSISTENCY_LAYOUTS",
@@ -98,11 +100,11 @@ def protocol_record(
     spec = estimator(method)
     options = IdentifyOptions(initial_load=initial_load, modes=jekf_modes if spec.method.startswith("jekf") else None)
     res = run_record(
-        spec, model, case.measurements, options, truth=case, settings=settings if spec.method == "mhe" else None
+        spec, model, case.measurements, options, truth=case, settings=settings if has_oracle(spec) else None
     )
     rec = evaluate(case, res, model, method)
     rec.wall_s = time.perf_counter() - t0
-    if method == "mhe" and oracle_offsets:
+    if oracle_offsets and has_oracle(spec):
         grid = [rec.regularization * 10.0**e for e in oracle_offsets]
         lam, err, _ = oracle_lambda(case, model, settings or MHESettings(), grid, initial_load=initial_load)
         rec.oracle_regularization, rec.oracle_load_error = lam, min(err, rec.load_error)
@@ -135,16 +137,23 @@ def estimator(method: str) -> EstimatorSpec:
     return resolve(method, simulated="linear")
 
 
+def has_oracle(spec: EstimatorSpec) -> bool:
+    """Whether a study finds the oracle lambda of the registry's estimator ``spec``: the one that runs
+    on :class:`MHESettings` (the oracle reruns it on a grid of its lambda, and the study's MHE
+    settings are its)."""
+    return spec.settings is MHESettings
+
+
 def task_cost(
     method: str, model_nodes, t_end: float, oracle: bool, jekf_modes: int | None = None, dt: float = 1e-3
 ) -> float:
     """Run-time estimate (s) of one run: the size estimate of :func:`wingopt.resources.estimate_identify`,
     times the runs of the oracle-lambda grid (the engine submits the cheapest first: early results)."""
-    method = estimator(method).method
+    spec = estimator(method)
     seconds = resources.estimate_identify(
-        tuple(model_nodes), int(round(t_end / dt)) + 1, method=method, jekf_modes=jekf_modes
+        tuple(model_nodes), int(round(t_end / dt)) + 1, method=spec.method, jekf_modes=jekf_modes
     ).seconds
-    return seconds * (1 + len(ORACLE_OFFSETS) if oracle and method == "mhe" else 1)
+    return seconds * (1 + len(ORACLE_OFFSETS) if oracle and has_oracle(spec) else 1)
 
 
 def protocol_tasks(
@@ -176,7 +185,7 @@ def protocol_tasks(
         truth_key = f"truth/{digest(problem, load, truth_nodes, t_end)}/{load}"
         shared.setdefault(truth_key, SharedInput(truth_key, simulate_clean, (problem, load, truth_nodes, t_end)))
         sign = protocol_sign(load) * abs(problem.identification.initial_load)
-        offsets = tuple(oracle_offsets) if oracle and method == "mhe" else None
+        offsets = tuple(oracle_offsets) if oracle and has_oracle(estimator(method)) else None
         args = (params, method, float(noise), int(seed), settings, sign, offsets, modes, histories)
         key = task_key(params)
         cost = task_cost(method, problem.nodes, t_end, bool(offsets), modes)

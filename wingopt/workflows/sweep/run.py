@@ -24,6 +24,8 @@ from wingopt.workflows.sweep.protocol import (
     ORACLE_OFFSETS,
     build_model,
     digest,
+    estimator,
+    has_oracle,
     protocol_record,
     simulate_clean,
     task_cost,
@@ -63,7 +65,7 @@ def sweep_tasks(spec: SweepSpec) -> tuple[list[SweepTask], list[SharedInput]]:
         args = (run.truth_problem, run.load, run.truth_nodes, run.t_end)
         shared.setdefault(truth_key, SharedInput(truth_key, simulate_clean, args))
         method = run.params["method"]
-        offsets = tuple(ORACLE_OFFSETS) if spec.oracle and method == "mhe" else None
+        offsets = tuple(ORACLE_OFFSETS) if spec.oracle and has_oracle(estimator(method)) else None
         sign = protocol_sign(run.load) * abs(run.problem.identification.initial_load)
         args = (run.params, method, run.noise_fraction, int(run.params["seed"]), run.settings, sign, offsets)
         cost = task_cost(method, run.problem.nodes, run.t_end, bool(offsets))
