@@ -244,6 +244,21 @@ def test_calibrate_with_the_map_finds_the_parameters_of_the_record(files, tmp_pa
     assert b["data_report"]["channels"]["columns"] == COLUMN and "channels" not in a["data_report"]
 
 
+def test_write_problem_keeps_the_daq_map_the_record_was_read_with(files, tmp_path, capsys):
+    daq, ref = _daq_files(tmp_path, RECORD.parent / "tunnel_calibration_300Hz.csv", "cal_")
+    written = tmp_path / "calibrated.toml"
+    argv = ["calibrate", "membrane", "--data", str(daq), *CLI_MAP, "--out", str(tmp_path / "c")]
+    assert main([*argv, "--write-problem", str(written), "--json"]) == 0
+    used = json.loads(capsys.readouterr().out)["data_report"]["channels"]
+    problem = load_problem(written)
+    kept = problem.measurements.as_dict(problem.sensor_names)
+    assert {**kept, "declared_in": None} == {**used, "declared_in": None}
+    # the written file alone reads the DAQ's file as the reference record reads
+    by_file, _ = read_measurements(daq, problem.sensor_names, problem.measurements)
+    reference, _ = read_measurements(ref, problem.sensor_names)
+    assert np.allclose(by_file.t, reference.t) and np.allclose(by_file.values, reference.values, equal_nan=True)
+
+
 def test_calibrate_takes_the_same_map(files, tmp_path, capsys):
     argv = ["calibrate", str(files["small"]), "--data", str(files["daq"]), *CLI_MAP[:4], "--gain", "S9=1e-5"]
     assert main(argv + ["--out", str(tmp_path / "c")]) == 2

@@ -182,6 +182,18 @@ class ChannelMap:
         gain, offset = self.calibration(sensor_names)
         return t * TIME_UNITS[self.time_unit], gain * (raw - offset)
 
+    def table(self, sensor_names) -> dict:
+        """The ``[measurements]`` keys of a problem file that declare this map (every sensor's entry
+        written out, so that the file reads as the map does whatever it was merged from)."""
+        gain, offset = self.calibration(sensor_names)
+        return {
+            "time": self.time,
+            "time_unit": self.time_unit,
+            "columns": {s: self.column(s) for s in sensor_names},
+            "gain": {s: float(g) for s, g in zip(sensor_names, gain)},
+            "offset": {s: float(o) for s, o in zip(sensor_names, offset)},
+        }
+
     def as_dict(self, sensor_names) -> dict:
         """What a run records: time column and unit, each sensor's column, gain and offset, the convention."""
         gain, offset = self.calibration(sensor_names)

@@ -181,7 +181,11 @@ def calibrated_problem(run: CalibrationRun):
 def calibrated_problem_text(run: CalibrationRun) -> str:
     """The problem file's text with the calibration's posterior as ``[identification]`` prior."""
     header = f"calibrated by wingopt calibrate from {run.source} (problem {run.problem.source})"
-    return table_text(read_problem_table(run.problem.source), {"identification": _calibrated_fields(run)}, header)
+    updates = {"identification": _calibrated_fields(run)}
+    channels = run.problem.measurements
+    if channels is not None and not channels.is_identity:  # the DAQ's map the record was read with
+        updates["measurements"] = channels.table(run.problem.sensor_names)
+    return table_text(read_problem_table(run.problem.source), updates, header)
 
 
 def _calibrated_fields(run: CalibrationRun) -> dict:
