@@ -283,3 +283,26 @@ def test_plot_lift_and_plot_field_from_wo_return_figures(runs):
     assert field_colors(np.array([-1.0, 3.0])) == {"cmap": "RdBu_r", "vmin": -3.0, "vmax": 3.0}
     with pytest.raises(InputError, match="which = 'last'"):
         wo.plot_field(run, "last")
+
+
+def test_a_stream_writes_its_lift_figure_report_and_provenance(tmp_path):
+    from wingopt.estimation.options import IdentifyOptions
+    from wingopt.estimation.registry import resolve
+    from wingopt.workflows.stream import follow
+
+    lines = RECORD.read_text().splitlines()
+    head = [ln for ln in lines if ln.startswith("#") or not ln.strip()[:1].isdigit()]
+    rows = [ln for ln in lines if ln not in head][:400]
+    part = tmp_path / "first_400.csv"
+    part.write_text("\n".join([*head, *rows]) + "\n")
+    problem = wo.load_problem("membrane")
+    spec = resolve("auto", "linear", stream=True)
+    out = tmp_path / "stream"
+    options = IdentifyOptions(window=100, modes=20)
+    summary = follow(problem, out, source=str(part), spec=spec, options=options, idle_timeout=0.5)
+    on_disk = json.loads((out / "summary.json").read_text())
+    sha = hashlib.sha256(part.read_bytes()).hexdigest()
+    assert [r["sha256"] for r in on_disk["provenance"]["inputs"] if r["option"] == "--data"] == [sha]
+    page = _check_report(out / "report.html", [sha, "stream", part.name, f"{summary['lift_N']:.4g}"])
+    assert len(page.images) == len(list(out.glob("*.png"))) == 1  # the lift history with the reported lift
+    assert all(w in " ".join(page.text) for w in on_disk["warnings"])

@@ -110,6 +110,8 @@ def follow(
     from wingopt.problem import as_problem
     from wingopt.results import ResultDirectory, to_jsonable, write_json
     from wingopt.results.live import LiveCsv
+    from wingopt.results.provenance import problem_record, provenance
+    from wingopt.results.stream_files import write_stream_files
 
     problem = as_problem(problem, "membrane")
     source, spec, options, stop = _checked(source, spec, options, poll, idle_timeout, stop, on_estimate)
@@ -133,7 +135,10 @@ def follow(
         mapped = parser if channels is not None else None
         describe(summary, problem, (push.peak, push.peak_sensor), method, spec, options, mapped)
         summary["wall_s"] = time.perf_counter() - t_start
+        summary["provenance"] = provenance([("--data", source)] + inputs[1:])
+        summary["problem_file"] = problem_record(problem)
         write_json(tmp / "summary.json", to_jsonable(summary))
+        write_stream_files(tmp, to_jsonable(summary), name)
         writer.commit()
     if failure is not None:
         raise _as_stream_error(failure, method, live.rows, writer.target)

@@ -1,0 +1,66 @@
+"""What a stream leaves beside its ``lift.csv`` and ``summary.json``: the lift figure and ``report.html``.
+
+A stream (``identify --data -``, ``--follow``) writes its estimates as they come; once it has
+ended, its lift history is read back from ``lift.csv`` and drawn with the reported lift and band,
+and the run's report is written as an identification's (:func:`~.run_report.identify_report`).
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from wingopt.results.run_report import identify_report
+
+__all__ = ["write_stream_files"]
+
+log = logging.getLogger(__name__)
+
+MAX_POINTS = 20000
+"""The most points a stream's lift figure draws (an hour at 1 kHz is thinned to it, evenly)."""
+
+
+def write_stream_files(tmp: Path, summary: dict, source: str, *, plots: bool = True) -> dict:
+    """Write ``lift.png`` (``plots``) and ``report.html`` of a finished stream into ``tmp``.
+
+    Parameters
+    ----------
+    tmp : Path
+        The stream's (temporary) result directory, holding its ``lift.csv``.
+    summary : dict
+        What ``summary.json`` holds (provenance included).
+    source : str
+        The stream's input, as its report names it.
+
+    Returns
+    -------
+    dict
+        ``{file name: caption}`` of the figures written.
+    """
+    figures: dict = {}
+    t, lift, std = _lift_history(tmp / "lift.csv")
+    if plots and t.size:
+        from wingopt.plots.identify import plot_lift  # matplotlib: only when drawing
+
+        reported = (summary.get("lift_N"), summary.get("lift_std_N"))
+        title = f"{Path(source).name} · stream · {summary.get('status')}"
+        plot_lift(tmp / "lift.png", t, lift, std, title=title, reported=reported)
+        figures["lift.png"] = "lift history of the stream with its 1-sigma band and the reported lift"
+    identify_report(tmp / "report.html", summary, figures, "stream", Path(source).name)
+    return figures
+
+
+def _lift_history(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(t, lift, std)`` of a stream's ``lift.csv``, thinned to :data:`MAX_POINTS` rows at most."""
+    with open(path, newline="", encoding="utf-8") as fh:
+        rows = [r for r in csv.DictReader(fh)]
+    step = max(1, -(-len(rows) // MAX_POINTS))
+    rows = rows[::step]
+
+    def column(name: str) -> np.ndarray:
+        return np.array([float(r[name]) if r.get(name) not in (None, "") else np.nan for r in rows])
+
+    return column("t"), column("lift_N"), column("lift_std_N")
