@@ -15,7 +15,14 @@ ended 6.8 of its bands off). At the first look that finds a stream transient
 * a filter whose lift is more than :data:`AGREE_BANDS` combined bands from the batch fit's is
   flagged (its estimates inadequate) and said, with the batch's answer in ``info``: a filter that
   went on from a poor start (measured: L2 without a declared initial shape, +37 of its bands)
-  no longer ends confident and silent.
+  no longer ends confident and silent;
+* what the batch fit says about its answer (its warnings: a frame prior it cannot tell from the
+  interior one, a stalled fit, ...) is said by the stream too, and a batch fit that misfits the
+  samples (status ``misfit``: the same model does not explain them) flags the stream's answer: the
+  filter agreeing with such a fit confirms nothing (fuzz record #109, FvK truth, a leading-edge
+  tunnel load: the filter 1.145 ± 0.085 N, the batch 1.163 ± 0.085 N with a warning that the
+  sensors do not tell whether the load reaches the frame, the truth 1.475 N; the stream said
+  nothing).
 
 The check costs one batch fit of the first look's record (about a second of data), once.
 """
@@ -52,6 +59,8 @@ class BatchCheck:
     filter_lift: float
     filter_std: float
     error: str | None = None
+    status: str = ""
+    notes: tuple[str, ...] = ()
 
     @classmethod
     def of(cls, result: IdentificationResult, last: Estimate, samples: int) -> BatchCheck:
@@ -64,17 +73,25 @@ class BatchCheck:
         spread = math.hypot(frame, prior)
         band = math.hypot(last.lift_std, math.hypot(std, spread)) if math.isfinite(last.lift_std) else math.inf
         gap = abs(last.lift - lift) / band if band > 0 and math.isfinite(last.lift) else math.inf
-        return cls(float(last.t), samples, float(lift), std, spread, float(gap), float(last.lift), float(last.lift_std))
+        notes = tuple(str(w) for w in info.get("warnings", ()))
+        filt = (float(last.lift), float(last.lift_std))
+        status = str(getattr(result, "status", ""))  # an IdentificationResult; a bare answer has none
+        return cls(float(last.t), samples, float(lift), std, spread, float(gap), *filt, status=status, notes=notes)
 
     @classmethod
     def failed(cls, last: Estimate, samples: int, exc: BaseException) -> BatchCheck:
         nan = float("nan")
-        return cls(float(last.t), samples, nan, nan, 0.0, 0.0, float(last.lift), float(last.lift_std),
-                   f"{type(exc).__name__}: {exc}")  # fmt: skip
+        filt = (float(last.lift), float(last.lift_std))
+        return cls(float(last.t), samples, nan, nan, 0.0, 0.0, *filt, error=f"{type(exc).__name__}: {exc}")
 
     @property
     def agrees(self) -> bool:
         return self.error is not None or self.gap_bands <= AGREE_BANDS
+
+    @property
+    def fits(self) -> bool:
+        """The batch fit explains the samples (its status is not ``misfit``)."""
+        return self.status != "misfit"
 
     def widened(self, e: Estimate) -> Estimate:
         """``e`` with the spread in its band, at least the batch's band, flagged when the filter
@@ -82,7 +99,7 @@ class BatchCheck:
         std = math.hypot(e.lift_std, self.spread) if math.isfinite(e.lift_std) else e.lift_std
         if self.error is None and math.isfinite(self.lift_std):
             std = max(std, self.lift_std)  # the same samples' whole posterior: the filter cannot know more
-        return dataclasses.replace(e, lift_std=std, adequate=bool(e.adequate and self.agrees))
+        return dataclasses.replace(e, lift_std=std, adequate=bool(e.adequate and self.agrees and self.fits))
 
     def warnings(self) -> list[str]:
         if self.error is not None:
@@ -100,6 +117,12 @@ class BatchCheck:
                 f"{self.lift_std:.2g} N) of the same samples: the filter's answer is flagged; run the batch identify "
                 "on the stored record"
             )
+        if not self.fits:
+            out.append(
+                f"the whole-record batch fit of the first {self.samples} samples misfits them (status misfit): the "
+                "filter's model does not explain them either, and its answer is flagged"
+            )
+        out += [f"the whole-record batch fit of the first {self.samples} samples says: {w}" for w in self.notes]
         return out
 
     def as_dict(self) -> dict:

@@ -49,6 +49,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from wingopt.errors import InputError
+from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.distributions import chi2_isf
 from wingopt.estimation.mhe import MovingHorizonEstimator
 from wingopt.estimation.mhe.consistency import SIGNIFICANCE
@@ -96,10 +97,10 @@ class StreamingEstimator:
     ) -> None:
         self.model = model
         self._make_rows = rows
-        self.settings = s = settings or StreamSettings()
+        self.settings = s = with_declaration(settings or StreamSettings(), model.problem)
         self._batch = MovingHorizonEstimator(model, s.mhe)
         self.reduced = self._batch.reduced
-        ident = model.problem.identification
+        ident = s.declaration
         self.names = tuple(model.problem.sensor_names)
         self.p = len(self.names)
         self._noise_arg = noise_std
@@ -242,8 +243,8 @@ class StreamingEstimator:
         self._band_i = 0
 
     def _noise(self, Y: np.ndarray) -> np.ndarray:
-        ident = self.model.problem.identification
-        return resolve_noise_std(Y, self.model.problem.sensor_names, self._noise_arg, None, ident.noise_std)[0]
+        declared = self.settings.declaration.noise_std
+        return resolve_noise_std(Y, self.model.problem.sensor_names, self._noise_arg, None, declared)[0]
 
     def _run_startup(self) -> None:
         """The batch start-up on the buffered samples, then the tracking window from its answer."""

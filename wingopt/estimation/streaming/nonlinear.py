@@ -43,6 +43,8 @@ data do not fit (as the batch). Adequacy: the normalised innovations ``nu^T S^-1
 ``window_s`` seconds against ``level * chi2_{1-a}(n)`` (``a`` =
 :data:`~wingopt.estimation.mhe.consistency.SIGNIFICANCE`, ``level`` the start-up fit's chi-square
 per datum, between 1 and 1.15, as the linear streaming estimator); ``chi2_per_datum`` is their mean.
+The flag also carries the whole record's verdict (:mod:`.verdict`): a start-up or reset fit that
+misfits, or windows that misfit through more than a tenth of the tracking, flag every later estimate.
 Work per sample: one tangent step on ``(42, 48)`` arrays, ``O(d^2 p)`` algebra; memory: ``G``,
 ``Sigma``, a ring of ``window_s / dt`` numbers. A load changing faster than the walk (a gust) shows
 as a misfit; the batch's gust model is not streamed. A numerical failure of the filter (a diverged
@@ -64,6 +66,7 @@ from wingopt.errors import InputError
 from wingopt.estimation.core.load_model import LoadShapes
 from wingopt.estimation.core.model_form import prestrain_std_with_model_form
 from wingopt.estimation.core.record_problem import PARAMETERS, ParameterPrior
+from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.distributions import chi2_isf
 from wingopt.estimation.mhe.consistency import SIGNIFICANCE
 from wingopt.estimation.noise import MHE_NOISE, resolve_noise_std
@@ -72,6 +75,7 @@ from wingopt.estimation.streaming.nonlinear_start import TOLERANCE, batch_start
 from wingopt.estimation.streaming.recovery import Recovery, healthy
 from wingopt.estimation.streaming.running_noise import RunningNoise
 from wingopt.estimation.streaming.types import NonlinearStreamSettings, SampleClock
+from wingopt.estimation.streaming.verdict import Verdict
 from wingopt.membrane import MembraneModel, bubble
 from wingopt.membrane.forward import ModalSample, modal_model
 
@@ -101,9 +105,9 @@ class NonlinearStreamingEstimator:
         initial_load: float | None = None,
     ) -> None:
         self.model = model
-        self.settings = s = settings or NonlinearStreamSettings()
+        self.settings = s = with_declaration(settings or NonlinearStreamSettings(), model.problem)
         problem = model.problem
-        ident = problem.identification
+        ident = s.declaration
         self.names = tuple(problem.sensor_names)
         self.p = len(self.names)
         self.initial_load = ident.initial_load if initial_load is None else float(initial_load)
@@ -111,7 +115,7 @@ class NonlinearStreamingEstimator:
             raise InputError(f"initial_load = {self.initial_load!r}: expected a non-zero pressure (its sign)")
         given = noise_std if noise_std is not None else ident.noise_std
         self._sigma_given = None if given is None else resolve_noise_std(np.zeros((1, self.p)), self.names, given)[0]
-        self.prior = ParameterPrior.from_problem(problem, s.free)
+        self.prior = ParameterPrior.from_problem(problem, s.free, declaration=ident)
         self.shapes = LoadShapes.build(model, min(s.shapes, model.n), self.initial_load, s.kappa, s.prior_power)
         self._build(ident.dt or 1e-3)  # rebuilt at the first estimate if the stream's period differs
         self.count = 0
@@ -127,6 +131,7 @@ class NonlinearStreamingEstimator:
         self._isf: dict[int, float] = {}
         self.startup: dict = {}
         self._recovery = Recovery(1)  # sized at the provisional filter's start (:mod:`.recovery`)
+        self.verdict = Verdict(TOLERANCE)  # the whole record's flags (:mod:`.verdict`)
 
     # -- model and layout ----------------------------------------------------------------------
     def _build(self, dt: float) -> None:
@@ -149,7 +154,7 @@ class NonlinearStreamingEstimator:
     def _prior_state(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Prior mean of the joint state (scaled) and its sensitivity ``G`` to the unknowns (prior ``N(0, I)``)."""
         bm, problem, m, ms = self.bm, self.model.problem, self.m, min(self.settings.state_modes, self.m)
-        peak = problem.identification.initial_deflection
+        peak = self.settings.declaration.initial_deflection
         omega = bm.omega()
         if peak != 0:
             q = bm.to_modal(bm.model.project(bubble(problem.width, problem.height, peak)))
@@ -239,13 +244,10 @@ class NonlinearStreamingEstimator:
         out = {"phase": self.phase, "samples": self.count, "dt_s": self.dt, "model": self._model_name}
         out.update(modes=self.m, load_shapes=self.shapes.count, substeps=self.bm.substeps, **self.startup)
         out.update(self._recovery.info())
-        chi = self.startup.get("startup_chi2_per_datum")
-        if chi is not None and chi > 1.0 + TOLERANCE:  # the filter went on from a start that misfits
-            out.setdefault("warnings", []).append(
-                f"the start-up's batch fit does not fit the first {self.startup['startup_sample'] + 1} samples "
-                f"(chi-square {chi:.1f} per datum): the filter went on from a poor start, and its answer may be far "
-                "off with a narrow band; run the batch identify on the stored record"
-            )
+        if self.phase == "tracking":
+            out["verdict"] = self.verdict.as_dict()
+        if self.verdict.warnings():
+            out["warnings"] = list(out.get("warnings", [])) + self.verdict.warnings()
         if self.phase not in ("waiting",):
             out.update(self.parameters(), noise_std=self.sigma.tolist(), noise_source=self.noise_source)
         return out
@@ -291,6 +293,7 @@ class NonlinearStreamingEstimator:
             tail = Y[int(Y.shape[0] * (1 - MHE_NOISE.tail)) :]
             self._running = RunningNoise(self.sigma, np.isfinite(np.diff(tail, 2, axis=0)).sum(axis=0), Y[-2:])
         out = batch_start(self, Y, self.sigma)
+        self.verdict.fitted(out["startup_chi2_per_datum"], Y.shape[0], "start-up")
         self._recovery.released()
         # the misfit level the model reaches (as the linear stream), at most the batch's tolerance:
         # a start-up fit that does not fit the data must not raise the bar of the flag
@@ -378,11 +381,13 @@ class NonlinearStreamingEstimator:
         adequate = bool(n == 0 or chi <= self._level * self._threshold(n)) and not (
             self._recovery.hold and phase == "tracking"
         )
+        if phase == "tracking":
+            self.verdict.sample(adequate)
         per = chi / max(n, 1)
         lift = float(self._lift @ self.x[ls])
         lc = self.lc
         var = float(self._lift @ self.Sigma[lc, lc] @ self._lift)
         std = math.sqrt(max(var, 0.0)) * (1.0 if adequate else math.sqrt(max(per, 1.0)))
         load = self.shapes.coefficients(self.shapes.prior_std * self.x[ls])
-        self.last = Estimate(k, t, lift, std, load, per, adequate, phase)
+        self.last = Estimate(k, t, lift, std, load, per, adequate and self.verdict.ok, phase)
         return self.last

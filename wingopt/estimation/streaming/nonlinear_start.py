@@ -55,7 +55,7 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
         starts = 2
         fit = other if other.cost < fit.cost else fit
     theta, Sigma = fit.theta, fit.covariance
-    peak = est.model.problem.identification.initial_deflection
+    peak = est.settings.declaration.initial_deflection
     if peak == 0 and est._lift @ theta[sl["c"]] * np.sign(est.initial_load) < 0:
         # sign-blind sensors and no bubble: state and load flip together, the prior load's sign decides
         flip = np.ones(rp.dim)

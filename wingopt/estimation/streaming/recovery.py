@@ -131,6 +131,7 @@ class Recovery:
             return
         self.hold = False
         self.events[-1]["reset"] = {"samples": int(Y.shape[0]), "chi2_per_datum": out["startup_chi2_per_datum"]}
+        est.verdict.fitted(out["startup_chi2_per_datum"], Y.shape[0], "reset")
         log.info("[ekf stream] reset from the batch fit of the last %d samples (%s)", Y.shape[0], why)
 
     def released(self) -> None:

@@ -9,6 +9,7 @@ import numpy as np
 from wingopt.errors import InputError
 from wingopt.estimation.mhe import MHESettings
 from wingopt.estimation.options import option
+from wingopt.problem.membrane import IdentificationSettings
 
 __all__ = ["StreamSettings", "NonlinearStreamSettings", "SampleClock", "STREAM_MHE_OPTIONS"]
 
@@ -39,6 +40,11 @@ class StreamSettings:
         The provisional phase estimates the initial state of this many lowest modes only; the
         others are held at the prior (the problem's bubble, or rest). A cheaper, cruder estimate
         (16 + m instead of 3m unknowns) until the batch start-up replaces it.
+    declaration : IdentificationSettings or None
+        What the problem file declares for identification (its ``[identification]``: noise,
+        initial load and shape), filled by the builder from the problem file
+        (:func:`~wingopt.estimation.declaration.with_declaration`, at the stream's construction;
+        ``None`` until then); a caller may give its own. The stream reads it here, never the problem.
     """
 
     mhe: MHESettings = field(default_factory=MHESettings, metadata=option(uses=STREAM_MHE_OPTIONS))
@@ -47,6 +53,7 @@ class StreamSettings:
     min_samples: int = 20
     trust: float = 1.0
     provisional_state_modes: int = 8
+    declaration: IdentificationSettings | None = None
 
     def __post_init__(self) -> None:
         if self.mhe.load_model != "constant":
@@ -96,6 +103,11 @@ class NonlinearStreamSettings:
     membrane_model : {"berger", "fvk"}
         The nonlinear membrane: the Berger model or the cubic modal FvK model of the batch
         default (``cubic_modes`` of its modes with FvK's cubic stiffness).
+    declaration : IdentificationSettings or None
+        What the problem file declares for identification (its ``[identification]``: noise,
+        initial load and shape, parameter priors), filled by the builder from the problem file
+        (:func:`~wingopt.estimation.declaration.with_declaration`, at the stream's construction;
+        ``None`` until then); a caller may give its own. The stream reads it here, never the problem.
     """
 
     modes: int = field(default=48, metadata=option("modes"))
@@ -113,6 +125,7 @@ class NonlinearStreamSettings:
     window_s: float = 0.1
     membrane_model: str = "berger"
     cubic_modes: int = 16
+    declaration: IdentificationSettings | None = None
 
     def __post_init__(self) -> None:
         if self.membrane_model not in ("berger", "fvk"):
