@@ -242,8 +242,16 @@ def _fits_data(t: np.ndarray, rp: RecordProblem, fit: Fit, s: RecordSettings) ->
 
 
 def _flip(rp: RecordProblem, theta: np.ndarray) -> np.ndarray:
+    """``theta`` with the load and the initial state mirrored (``x0 -> -x0``, ``c -> -c``).
+
+    The unknowns hold the state modes' part of the initial state only, scaled about its prior
+    (:meth:`RecordProblem.physical`): their entries are the state modes' displacements and velocities
+    of the prior's full ``(2m,)`` mean.
+    """
     th = theta.copy()
     for name in ("x0", "c"):
         th[rp.slices[name]] *= -1
-    th[rp.slices["x0"]] -= 2 * rp.x0_mean / rp.x0_std
+    m, ms = rp.model.m, rp.state_modes
+    held = np.r_[0:ms, m : m + ms]
+    th[rp.slices["x0"]] -= 2 * rp.x0_mean[held] / rp.x0_std[held]
     return th
