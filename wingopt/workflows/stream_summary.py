@@ -84,6 +84,9 @@ def _summary(est, parser, reason, cpu, wall, bad, first_bad, source, problem, ro
             f"the stream ended in the {info['phase']} phase, before the start-up: the estimates are provisional "
             "(prior, provisional lambda and noise level)"
         )
+    verdict = info.get("verdict")
+    if verdict is not None:  # the window's own test, not the whole record's flags the estimate also carries
+        bad = verdict["misfit_samples"]
     if bad:
         warnings.append(
             f"the window misfit exceeded the chi-square bound at {bad} samples (first at t = {first_bad:.6g} s): "
