@@ -13,14 +13,26 @@ from pathlib import Path
 
 import numpy as np
 
+from wingopt.results.provenance import problem_record, provenance
 from wingopt.results.run_report import identify_report
+from wingopt.results.writer import to_jsonable, write_json
 
-__all__ = ["write_stream_files"]
+__all__ = ["write_stream_outputs", "write_stream_files"]
 
 log = logging.getLogger(__name__)
 
 MAX_POINTS = 20000
 """The most points a stream's lift figure draws (an hour at 1 kHz is thinned to it, evenly)."""
+
+
+def write_stream_outputs(tmp: Path, summary: dict, source: str, inputs, problem) -> None:
+    """Complete ``summary`` with the provenance of ``inputs`` (``(option, path)`` pairs) and the
+    problem file's record, and write ``summary.json``, ``lift.png`` and ``report.html`` into ``tmp``."""
+    summary["provenance"] = provenance(inputs)
+    summary["problem_file"] = problem_record(problem)
+    on_disk = to_jsonable(summary)
+    write_json(tmp / "summary.json", on_disk)
+    write_stream_files(tmp, on_disk, source)
 
 
 def write_stream_files(tmp: Path, summary: dict, source: str, *, plots: bool = True) -> dict:

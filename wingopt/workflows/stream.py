@@ -108,10 +108,9 @@ def follow(
     from wingopt.measurements.csv_stream import CsvRowParser
     from wingopt.membrane import MembraneModel
     from wingopt.problem import as_problem
-    from wingopt.results import ResultDirectory, to_jsonable, write_json
+    from wingopt.results import ResultDirectory
     from wingopt.results.live import LiveCsv
-    from wingopt.results.provenance import problem_record, provenance
-    from wingopt.results.stream_files import write_stream_files
+    from wingopt.results.stream_files import write_stream_outputs
 
     problem = as_problem(problem, "membrane")
     source, spec, options, stop = _checked(source, spec, options, poll, idle_timeout, stop, on_estimate)
@@ -135,10 +134,7 @@ def follow(
         mapped = parser if channels is not None else None
         describe(summary, problem, (push.peak, push.peak_sensor), method, spec, options, mapped)
         summary["wall_s"] = time.perf_counter() - t_start
-        summary["provenance"] = provenance([("--data", source)] + inputs[1:])
-        summary["problem_file"] = problem_record(problem)
-        write_json(tmp / "summary.json", to_jsonable(summary))
-        write_stream_files(tmp, to_jsonable(summary), name)
+        write_stream_outputs(tmp, summary, name, [("--data", source)] + inputs[1:], problem)
         writer.commit()
     if failure is not None:
         raise _as_stream_error(failure, method, live.rows, writer.target)
