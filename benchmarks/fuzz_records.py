@@ -214,7 +214,7 @@ def _estimate(case, problem, meas, rec, fwd, truth) -> dict:
             "band": sd,
             "z": float(z),
             "warnings": len(cal.calibration.warnings),
-            "status": "calibrated",
+            "status": str(cal.calibration.status),  # converged, misfit or not_converged
         }
     if route == "stream":
         with tempfile.TemporaryDirectory() as tmp:
