@@ -13,7 +13,10 @@
    with the inertia and damping forces in the balance (:mod:`.frames`);
 5. a mean field that misfits the load space systematically (chi-square per datum above
    :data:`ADEQUATE_CHI2`: a load outside the priors' families): the lifts of richer spaces, the
-   other priors and held-out fits are added to the band, the lift unmoved (:mod:`.model_form`).
+   other priors and held-out fits are added to the band, the lift unmoved (:mod:`.model_form`);
+6. a load that moves over the frames (a gust, a drift: the frames' loads' windows against their
+   scatter): the steady fit of the mean field is not the record's load; the band takes in the
+   windows' lifts, the status is ``misfit`` and a warning says what moved (:mod:`.motion`).
 
 The result is the package's one :class:`~wingopt.estimation.result.IdentificationResult`; ``info``
 says where the tension came from, what the field itself says about it, how well the model fits
@@ -34,9 +37,10 @@ from wingopt.estimation.core.load_prior import load_priors, prior_kinds
 from wingopt.estimation.core.record_problem import ParameterPrior
 from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.fullfield.data import FieldData, field_data, inplane_check
-from wingopt.estimation.fullfield.frames import frame_loads
+from wingopt.estimation.fullfield.frames import FrameLoads, frame_loads
 from wingopt.estimation.fullfield.model_form import model_form
 from wingopt.estimation.fullfield.modes import ModalCheck, modal_check
+from wingopt.estimation.fullfield.motion import MIN_WINDOW, LoadMotion, load_motion
 from wingopt.estimation.fullfield.settings import AUTO_PRIORS, FullFieldSettings
 from wingopt.estimation.fullfield.steady import PrestrainPrior, SteadyFit, fit_prior
 from wingopt.estimation.fullfield.system import PressureFromShape
@@ -125,14 +129,18 @@ def fullfield_identify(
         # (:mod:`.model_form`); the lift does not move
         form = model_form(model, s, p0, mf.fvk, mf.data, mf.y0, mf.weight, best, mean)
         std = float(np.hypot(std, form.spread))
-    h = _frames(mf.data, best, s.inertia, std) if mode == "frames" else _repeated(mf.data, best, mean, std)
+    fl = frame_loads(mf.data, best, s.inertia) if mode == "frames" or mf.data.count >= 2 * MIN_WINDOW else None
+    motion = None if fl is None else load_motion(fl, best.shapes.forces, best.post.c, mean)
+    steady_std = std if motion is None else float(np.hypot(std, motion.spread))
+    h = _frames(fl, best, std) if mode == "frames" else _repeated(mf.data, best, mean, steady_std)
     modal = None
     if mode == "frames" and s.modes and fluctuation(mf.data) >= MIN_FLUCTUATION:
         modal = modal_check(mf.data, best.system, best.prestrain)
-    info = _info(s, mode, mf.data, fits, w, best, mean, std, mf.prestrain, mf.fvk, dyn, modal)
+    info = _info(s, mode, mf.data, fits, w, best, mean, steady_std, mf.prestrain, mf.fvk, dyn, modal)
     info["model_form"] = None if form is None else form.as_dict(mean, std_before)
     if form is not None:
         info["warnings"].append(form.warning(mean, std_before))
+    _motion_info(info, motion, mean, std)
     if h.chi2_median is not None:
         info["frames_chi2_per_datum_median"] = h.chi2_median
     return IdentificationResult(
@@ -188,10 +196,9 @@ class _History(NamedTuple):
     chi2_median: float | None = None
 
 
-def _frames(data: FieldData, best: SteadyFit, inertia: bool, std: float) -> _History:
-    """Time-resolved: every used frame's own load about the steady fit, the other priors' spread
-    (the steady band beyond the chosen prior's) scaled with the load."""
-    fl = frame_loads(data, best, inertia)
+def _frames(fl: FrameLoads, best: SteadyFit, std: float) -> _History:
+    """Time-resolved: every used frame's own load about the steady fit (:func:`.frames.frame_loads`), the
+    other priors' spread (the steady band beyond the chosen prior's) scaled with the load."""
     extra = max(std**2 - best.lift_std**2, 0.0)
     lift_std = np.sqrt(fl.lift_std**2 + extra * (fl.lift / best.lift) ** 2)
     chi2 = float(np.median(fl.chi2_per_datum))
@@ -209,6 +216,15 @@ def _repeated(data: FieldData, best: SteadyFit, mean: float, std: float) -> _His
         np.full(idx.size, mean),
         np.full(idx.size, std),
     )
+
+
+def _motion_info(info: dict, motion: LoadMotion | None, lift: float, band_before: float) -> None:
+    """The load-motion check in ``info`` (:mod:`.motion`): a load that moves flags the answer (``misfit``:
+    the steady fit of the mean field is not the record's load) with a warning; the band is widened."""
+    info["load_motion"] = None if motion is None else motion.as_dict(band_before)
+    if motion is not None and motion.moves:
+        info["warnings"].append(motion.warning(lift, band_before))
+        info["model_adequate"] = False
 
 
 def _warnings(best: SteadyFit, pp: PrestrainPrior, data, dynamic: bool) -> list[str]:
