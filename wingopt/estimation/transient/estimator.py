@@ -37,6 +37,7 @@ from wingopt.estimation.core.frame_check import (
     extrapolated,
     frame_shapes,
     log_evidence,
+    reach,
     span_other,
     weigh,
 )
@@ -50,6 +51,7 @@ from wingopt.estimation.result import IdentificationResult
 from wingopt.estimation.transient.fit_result import (
     cut_short,
     fit_result,
+    half_gradient,
     residual_matrix,
     stalled_band,
     with_tension_profile,
@@ -61,6 +63,9 @@ from wingopt.measurements.series import Measurements
 from wingopt.membrane import MembraneModel
 
 __all__ = ["transient_identify"]
+
+Heading = np.ndarray | None
+"""The lift ``(N,)`` one Gauss–Newton step on from where a fit stopped short (``None``: it converged)."""
 
 
 def transient_identify(
@@ -147,7 +152,7 @@ def _checked(run: RecordRun, rp: RecordProblem, fit: Fit, fits, chosen, ad) -> I
         # An edge load: the frame prior (the interior shapes and free-edge ones) is its remedy as much
         # as the interior prior's wider scales; fitted first, a decisive answer spares the ladder.
         frame_first, resolved = _frame_first(run, rp, fit)
-    res, fit = _finish(run, rp, fit, fits, chosen, ad, resolved)
+    res, fit, _ = _finish(run, rp, fit, fits, chosen, ad, resolved)
     if stall is not None:
         res = stalled_band(res, fit, stall)
     if run.weigh_frame and run.budget.exhausted and frame_first is None:
@@ -172,10 +177,10 @@ def _weigh_frame(run: RecordRun, rp, fit, res, chosen, frame_first) -> Identific
         lift_f, chi2_f = extrapolated(rf, stop_f.last)
         return span_other(res, lift_f, fit.data_cost, chi2_f, "frame")
     ad_f = assess(run.meas.t, residual_matrix(rf, fit_f), fit_f.effective_parameters, run.s.segment_s)
-    res_f, fit_f = _finish(run, rf, fit_f, {chosen: fit_f}, chosen, ad_f)
+    res_f, fit_f, heading = _finish(run, rf, fit_f, {chosen: fit_f}, chosen, ad_f)
     if stop_f is not None:
         res_f = stalled_band(res_f, fit_f, stop_f)
-    return weigh(res, res_f, z, log_evidence(fit_f), (fit.data_cost, fit_f.data_cost))
+    return weigh(res, res_f, z, log_evidence(fit_f), (fit.data_cost, fit_f.data_cost), heading)
 
 
 def _reported(run: RecordRun, res: IdentificationResult, selection: dict, routing: str) -> IdentificationResult:
@@ -220,21 +225,24 @@ def _frame_first(run: RecordRun, rp: RecordProblem, fit: Fit) -> tuple[tuple[Rec
     return (rf, fit_f), f"the frame load prior explains the record without one, {gap:.0f} nats better"
 
 
-def _finish(run: RecordRun, rp, fit, fits, chosen, ad, resolved=None) -> tuple[IdentificationResult, Fit]:
-    """The prior check, the sign and the result of a fit, with the tension profile's band check."""
+def _finish(run: RecordRun, rp, fit, fits, chosen, ad, resolved=None) -> tuple[IdentificationResult, Fit, Heading]:
+    """The prior check, the sign and the result of a fit, with the tension profile's band check;
+    and, for a fit that stopped short of its optimum, the lift one Gauss–Newton step on (:func:`.reach`)."""
     s = run.s
     rp, fit, spread, prior_info = load_prior_check(rp, fit, run.fit, resolved)
     if prior_info["conflict"]:
         ad = assess(rp.t, residual_matrix(rp, fit), fit.effective_parameters, s.segment_s)
+    heading = None if fit.converged else reach(rp, fit.theta, fit.precision, half_gradient(rp, fit))
     c, _ = rp.load_history(fit.theta)
     if not run.bubble_known and rp.shapes.lift_row @ c * np.sign(run.p0) < 0:
         # Sign-blind sensors: state and load flip together; the prior load's sign decides.
         fit = dataclasses.replace(fit, theta=_flip(rp, fit.theta))
+        heading = None if heading is None else -heading  # the mirrored fit's step: the lift is odd in the load
     wall = time.perf_counter() - run.t0
     res = fit_result(rp, fit, fits, chosen, ad, run.sigma, run.noise_source, wall, s, spread, prior_info)
     if fit.out_of_budget:
         res = cut_short(res, rp, fit)
-    return with_tension_profile(res, rp, fit, ad, run.fit), fit
+    return with_tension_profile(res, rp, fit, ad, run.fit), fit, heading
 
 
 def _fits_data(t: np.ndarray, rp: RecordProblem, fit: Fit, s: RecordSettings) -> bool:

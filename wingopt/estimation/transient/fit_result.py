@@ -15,7 +15,7 @@ from wingopt.estimation.result import IdentificationResult
 from wingopt.estimation.transient.stopping import EarlyStop
 from wingopt.estimation.transient.tension_profile import tension_profile
 
-__all__ = ["fit_result", "stalled_band", "cut_short", "with_tension_profile", "residual_matrix"]
+__all__ = ["fit_result", "stalled_band", "cut_short", "with_tension_profile", "residual_matrix", "half_gradient"]
 
 
 def residual_matrix(rp: RecordProblem, fit: Fit) -> np.ndarray:
@@ -23,6 +23,12 @@ def residual_matrix(rp: RecordProblem, fit: Fit) -> np.ndarray:
     out = np.full(rp.y.shape, np.nan)
     out[rp.valid] = fit.residuals
     return out
+
+
+def half_gradient(rp: RecordProblem, fit: Fit) -> np.ndarray:
+    """The cost's half gradient ``J^T r`` (data and prior rows) where ``fit`` stopped."""
+    R = rp.prior_matrix
+    return fit.data_jacobian.T @ fit.residuals + R.T @ (R @ fit.theta)
 
 
 def fit_result(
@@ -153,8 +159,7 @@ def stalled_band(res: IdentificationResult, fit: Fit, w: EarlyStop) -> Identific
 def cut_short(res: IdentificationResult, rp: RecordProblem, fit: Fit) -> IdentificationResult:
     """A fit the work budget stopped: its band widened by ``sqrt(1 + decrement)`` at its last point
     (as a stall's: the local model's minimum is within ``sqrt(decrement)`` posterior sigma)."""
-    R = rp.prior_matrix
-    g = fit.data_jacobian.T @ fit.residuals + R.T @ (R @ fit.theta)
+    g = half_gradient(rp, fit)
     dec = float(g @ np.linalg.solve(fit.precision, g))
     widen = float(np.sqrt(1.0 + dec))
     res.info["budget_widening"] = widen

@@ -34,6 +34,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 
+from wingopt.estimation.core.frame_check import EXCLUDES
 from wingopt.estimation.core.record_fit import Iterate
 
 __all__ = ["STALL_WINDOW", "STALL_DROP", "STALL_DECREMENT", "STALL_MIN_DECREMENT", "DECIDED_NATS"]
@@ -55,9 +56,9 @@ STALL_MIN_DECREMENT = 0.25
 """Below this decrement (half a posterior sigma) a slow fit is left to the solver: it is about to
 converge (L1 on FvK truth crawls at 0.03 before its decrement falls below the solver's 0.01)."""
 
-DECIDED_NATS = 12.0
+DECIDED_NATS = EXCLUDES
 """Log-evidence gap (with the cost decrease still predicted credited) beyond which the frame prior's
-fit stops: a weight below ``exp(-12)`` = 6e-6."""
+fit stops: the evidence excludes it (:data:`.frame_check.EXCLUDES`, a weight below ``exp(-12)`` = 6e-6)."""
 
 
 class EarlyStop:
