@@ -44,13 +44,14 @@ def test_identify_refuses_a_run_beyond_the_time_limit_unless_forced(small_file, 
 
 def test_demo_refuses_a_run_beyond_the_time_limit_unless_forced(tmp_path, monkeypatch, capsys):
     import wingopt.workflows.demo as demo
+    import wingopt.workflows.demo_report as demo_report
 
     def run_demo(out, cfg, progress=None):  # the demo's own checks, without its 21 runs
         resources.check(_too_long(), max_memory=1e15)
         return {"forced": True}
 
     monkeypatch.setattr(demo, "run_demo", run_demo)
-    monkeypatch.setattr(demo, "summary_table", lambda summary: "table")
+    monkeypatch.setattr(demo_report, "summary_table", lambda summary: "table")
     c0 = time.process_time()
     assert main(["demo", "--quick", "--out", str(tmp_path / "d")]) == 2
     assert time.process_time() - c0 < 5.0
