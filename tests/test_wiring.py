@@ -15,7 +15,7 @@ import pytest
 from wingopt.estimation.core.record_problem import ParameterPrior
 from wingopt.estimation.core.record_settings import RecordSettings
 from wingopt.estimation.steady.estimator import steady_identify
-from wingopt.estimation.wiring import check_steady, check_transient
+from wingopt.estimation.steady.wiring import check_steady, check_transient
 from wingopt.measurements import Measurements, read_measurements
 from wingopt.membrane import (
     MembraneModel,

@@ -20,7 +20,6 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from wingopt.errors import InputError
-from wingopt.estimation import wiring
 from wingopt.estimation.core.load_prior import PriorScales, load_priors, prior_kinds
 from wingopt.estimation.core.record_problem import ParameterPrior
 from wingopt.estimation.core.record_settings import RecordSettings
@@ -41,6 +40,7 @@ from wingopt.estimation.steady.solutions import (
     weights,
 )
 from wingopt.estimation.steady.spectra import spectral_data
+from wingopt.estimation.steady.wiring import attach as attach_wiring
 from wingopt.measurements import Measurements
 from wingopt.membrane.model import MembraneModel
 
@@ -194,7 +194,7 @@ def steady_identify(
     info = _info(best, sols, w, data, scr, f11, warnings, calibrated)
     info["steady_lift_N"], info["steady_lift_std_N"] = mean, std
     info["mean_moves"] = {"moved": moved, "largest_window_move": move, "threshold": MOVING_MEAN}
-    wiring.attach(info, model, meas.t, meas.values, s, p0)  # gains, offsets, swaps: warned, the answer kept
+    attach_wiring(info, model, meas.t, meas.values, s, p0)  # gains, offsets, swaps: warned, the answer kept
     return IdentificationResult(
         method="steady",
         t=meas.t,

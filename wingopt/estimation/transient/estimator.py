@@ -29,7 +29,6 @@ import time
 
 import numpy as np
 
-from wingopt.estimation import wiring
 from wingopt.estimation.core.adequacy import assess
 from wingopt.estimation.core.frame_check import (
     decided,
@@ -48,6 +47,7 @@ from wingopt.estimation.core.record_settings import RecordSettings
 from wingopt.estimation.core.start import scan, short_start
 from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.result import IdentificationResult
+from wingopt.estimation.steady.wiring import attach as attach_wiring
 from wingopt.estimation.transient.fit_result import (
     cut_short,
     fit_result,
@@ -206,7 +206,7 @@ def _reported(run: RecordRun, res: IdentificationResult, selection: dict, routin
     if run.initial_shape["contradicted"]:
         res.info["warnings"].append(contradiction_note(run.initial_shape))
     res.info["routing"] = routing
-    wiring.attach(res.info, run.model, run.meas.t, run.meas.values, s, run.p0, steady=False)  # gains, offsets, swaps
+    attach_wiring(res.info, run.model, run.meas.t, run.meas.values, s, run.p0, steady=False)  # gains, offsets, swaps
     res.wall_s = time.perf_counter() - run.t0
     return res
 
