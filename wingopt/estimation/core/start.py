@@ -33,7 +33,7 @@ def initial_state_prior(
         amp = abs(q[0])
     else:
         q = np.zeros(md)
-        smax = np.nanmax(np.abs(y))
+        smax = np.nanmax(np.abs(y)) if np.isfinite(y).any() else 1.0  # no sample yet: any scale
         amp = float(np.sqrt(smax / np.max(np.abs(bm.sensor_matrices[:, 0, 0]))))
     sq = np.maximum(np.abs(q), amp * omega[0] / omega)
     sv = amp * omega[0] * np.ones(md)

@@ -66,6 +66,7 @@ from wingopt.errors import InputError
 from wingopt.estimation.core.load_model import LoadShapes
 from wingopt.estimation.core.model_form import prestrain_std_with_model_form
 from wingopt.estimation.core.record_problem import PARAMETERS, ParameterPrior
+from wingopt.estimation.core.start import initial_state_prior
 from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.distributions import chi2_isf
 from wingopt.estimation.mhe.consistency import SIGNIFICANCE
@@ -76,7 +77,7 @@ from wingopt.estimation.streaming.recovery import Recovery, healthy
 from wingopt.estimation.streaming.running_noise import RunningNoise
 from wingopt.estimation.streaming.types import NonlinearStreamSettings, SampleClock
 from wingopt.estimation.streaming.verdict import Verdict
-from wingopt.membrane import MembraneModel, bubble
+from wingopt.membrane import MembraneModel
 from wingopt.membrane.forward import ModalSample, modal_model
 
 __all__ = ["NonlinearStreamSettings", "NonlinearStreamingEstimator"]
@@ -153,21 +154,11 @@ class NonlinearStreamingEstimator:
 
     def _prior_state(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Prior mean of the joint state (scaled) and its sensitivity ``G`` to the unknowns (prior ``N(0, I)``)."""
-        bm, problem, m, ms = self.bm, self.model.problem, self.m, min(self.settings.state_modes, self.m)
+        m, ms = self.m, min(self.settings.state_modes, self.m)
         peak = self.settings.declaration.initial_deflection
-        omega = bm.omega()
-        if peak != 0:
-            q = bm.to_modal(bm.model.project(bubble(problem.width, problem.height, peak)))
-            amp = abs(q[0])
-        else:
-            q = np.zeros(m)
-            smax = np.nanmax(np.abs(Y)) if np.isfinite(Y).any() else 1.0
-            amp = float(np.sqrt(smax / np.max(np.abs(bm.sensor_matrices[:, 0, 0]))))
-        sq = np.maximum(np.abs(q), amp * omega[0] / omega)
-        sv = amp * omega[0] * np.ones(m)
-        self._D = np.concatenate([sq, sv])  # physical state = D * scaled state
+        mean, self._D, _ = initial_state_prior(self.bm, self.model.problem, Y, peak)  # the batch's prior
         x = np.zeros(self.n)
-        x[:m] = q / sq
+        x[:m] = mean[:m] / self._D[:m]  # physical state = D * scaled state
         # the load starts along the smoothest shape at the prior pressure (its sign): the sensors
         # are quadratic, a zero load and state would give the filter no gradient
         x[self.ls.start] = self.initial_load * self.shapes.lift_row[0] / self.shapes.prior_std[0]
