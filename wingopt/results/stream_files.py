@@ -66,11 +66,13 @@ def write_stream_files(tmp: Path, summary: dict, source: str, *, plots: bool = T
 
 
 def _lift_history(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(t, lift, std)`` of a stream's ``lift.csv``, thinned to :data:`MAX_POINTS` rows at most."""
+    """``(t, lift, std)`` of a stream's ``lift.csv``, thinned to :data:`MAX_POINTS` rows at most
+    (read twice, row by row: an hour at 1 kHz is never held whole)."""
     with open(path, newline="", encoding="utf-8") as fh:
-        rows = [r for r in csv.DictReader(fh)]
-    step = max(1, -(-len(rows) // MAX_POINTS))
-    rows = rows[::step]
+        count = sum(1 for _ in fh) - 1
+    step = max(1, -(-count // MAX_POINTS))
+    with open(path, newline="", encoding="utf-8") as fh:
+        rows = [r for i, r in enumerate(csv.DictReader(fh)) if i % step == 0]
 
     def column(name: str) -> np.ndarray:
         return np.array([float(r[name]) if r.get(name) not in (None, "") else np.nan for r in rows])
