@@ -256,14 +256,14 @@ def _warnings(best: Solution, sols: list[Solution], w: np.ndarray, scr, calibrat
         out.append(
             f"the model spectrum does not fit the record's (residual mean square {best.spectral_chi2:.2f}, expected 1)"
         )
-    heavy = [x.label for x, wi in zip(sols, w) if wi > KEEP]
-    if {"aerodynamic x0", "aerodynamic x1"} <= {h.split(",")[0] for h in heavy}:
+    heavy = [x for x, wi in zip(sols, w) if wi > KEEP]
+    priors = {x.prior for x in heavy}
+    if {"aerodynamic x0", "aerodynamic x1"} <= priors:
         out.append(
             "the sensors do not tell which edge is the leading edge: the lift and its band mix both; declare it "
             "([identification] leading_edge = 'x0' or 'x1')"
         )
-    priors = {h.split(",")[0] for h in heavy}
-    if any(f"{p}, other lobes" in heavy and p in heavy for p in priors):
+    if any({True, False} <= {x.other_lobes for x in heavy if x.prior == p} for p in priors):
         out.append(
             "the sensors do not tell the load's lobe signs apart (they see the slopes squared): the band spans "
             "both patterns"

@@ -11,6 +11,7 @@ corrected to the full order and the tension stays the prior's.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from dataclasses import dataclass
 
@@ -79,13 +80,15 @@ SAME = 1e-3
 
 @dataclass(frozen=True, eq=False)
 class Solution:
-    """One answer to a steady record: its load prior and lobe pattern (``label``), the static problem,
+    """One answer to a steady record: its load prior and whether the fit started from the other lobe
+    signs (``label`` names both, for the record), the static problem,
     the fit (the static one, or the buffeting fit's), the lift and its 1-sigma (N; widened by
     :func:`misfit_scale` when the prior misfits the mean), the Laplace
     log-evidence and the chi-squares (``static_chi2`` per sensor, ``spectral_chi2`` the Whittle
     residuals' mean square, NaN without buffeting)."""
 
-    label: str
+    prior: str
+    other_lobes: bool
     problem: SteadyProblem
     fit: Fit
     buffeting: BuffetingFit | None
@@ -94,6 +97,11 @@ class Solution:
     log_evidence: float
     static_chi2: float
     spectral_chi2: float = float("nan")
+
+    @property
+    def label(self) -> str:
+        """The load prior, and ``", other lobes"`` for a fit from the other lobe signs."""
+        return f"{self.prior}, other lobes" if self.other_lobes else self.prior
 
     @property
     def theta(self) -> np.ndarray:
@@ -128,11 +136,11 @@ def misfit_scale(static_chi2: float) -> float:
     return float(np.sqrt(max(1.0, static_chi2))) if np.isfinite(static_chi2) else 1.0
 
 
-def _static(label: str, sp_: SteadyProblem, fit: Fit) -> Solution:
+def _static(prior: str, other_lobes: bool, sp_: SteadyProblem, fit: Fit) -> Solution:
     g = sp_.lift_gradient()
     chi2 = float(np.mean(fit.residuals[: sp_.data.mean.size] ** 2))
     lift_std = float(np.sqrt(max(g @ fit.covariance @ g, 0.0))) * misfit_scale(chi2)
-    return Solution(label, sp_, fit, None, sp_.lift(fit.theta), lift_std, evidence(fit), chi2)
+    return Solution(prior, other_lobes, sp_, fit, None, sp_.lift(fit.theta), lift_std, evidence(fit), chi2)
 
 
 def _negated(sp_: SteadyProblem, theta: np.ndarray) -> np.ndarray:
@@ -159,7 +167,7 @@ def static_solutions(
         fit = fit_steady(sp_, [th], max_iter, corrections)
         if np.sign(sp_.lift(fit.theta)) * sign < 0:
             fit = Fit(**{**fit.__dict__, "theta": _negated(sp_, fit.theta)})
-        sol = _static(label if k == 0 else f"{label}, other lobes", sp_, fit)
+        sol = _static(label, k > 0, sp_, fit)
         if not any(_same(sol, o) for o in out):
             out.append(sol)
     return out
@@ -181,14 +189,23 @@ def resonance(sol: Solution, spectra: SpectralData, aliases: int = 1) -> tuple[S
 
 def _from_fit(sol: Solution, bf: BuffetingFit) -> Solution:
     band = bf.lift_std * misfit_scale(bf.static_chi2)
-    return Solution(sol.label, sol.problem, bf.fit, bf, bf.lift, band, bf.evidence, bf.static_chi2, bf.spectral_chi2)
+    return dataclasses.replace(
+        sol,
+        fit=bf.fit,
+        buffeting=bf,
+        lift=bf.lift,
+        lift_std=band,
+        log_evidence=bf.evidence,
+        static_chi2=bf.static_chi2,
+        spectral_chi2=bf.spectral_chi2,
+    )
 
 
 def corrected(sol: Solution, max_iter: int = 30) -> Solution:
     """``sol``'s static fit corrected to the full-order model (:func:`~.steady.fit_steady`)."""
     sp_ = sol.problem
     fit = fit_steady(sp_, [sol.theta], max_iter)
-    return _static(sol.label, sp_, fit)
+    return _static(sol.prior, sol.other_lobes, sp_, fit)
 
 
 def weights(solutions: list[Solution]) -> np.ndarray:
