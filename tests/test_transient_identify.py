@@ -102,8 +102,26 @@ def test_linear_model_on_nonlinear_data_is_flagged_and_its_band_covers():
 
 
 def test_lift_band_coverage_over_20_seeds():
-    covered = []
+    """The band covers every seed's error, and its noise part is the scatter of the answers (issue 31).
+
+    The band is not a noise band, so it is not asked to cover 68 % of the seeds. Four interior
+    sensors cannot tell whether the pressure reaches the frame: the frame prior fits these records
+    as well (chi-square 2-9 lower) with a lift 4-19 % higher (seeds 0, 1, 3 run to the end: 0.826,
+    0.838, 0.959 N for a true 0.794 N), and :func:`~wingopt.estimation.core.frame_check.span_other`
+    adds the difference to the band (0.015-0.074 N over seeds 0-5): an ambiguity of the load's form
+    common to every draw, which a band must cover and noise seeds cannot show. Measured parts of the
+    band before that term (``info["lift_band_parts"]``): noise 0.009-0.011 N, prior 0.011-0.013 N
+    (the load shapes and parameters the data leave to their prior: for one load, a bias common to all
+    draws), no misfit inflation; the answers scatter by 0.009 N (seeds 0-5). So the check is that
+    the band covers every error, and that the noise part matches the answers' scatter about their
+    mean (its sampling error over 20 seeds is about 16 %).
+    """
+    lifts, noise, covered = [], [], []
     for seed in range(20):
         clean, res, _, _ = _run("L1", seed=seed)
+        lifts.append(float(res.lift[-1]))
+        noise.append(res.info["lift_band_parts"]["noise_N"])
         covered.append(abs(res.lift[-1] - clean.lift_history[-1]) <= res.lift_std[-1])
-    assert 11 <= sum(covered) <= 17  # 55-85 %
+    assert all(covered)
+    ratio = np.std(lifts, ddof=1) / np.sqrt(np.mean(np.square(noise)))
+    assert 0.6 < ratio < 1.5, ratio

@@ -1,14 +1,17 @@
 """Early stops of a transient record's fits (:mod:`wingopt.estimation.transient.stopping`, issue 26):
-a stall far from converging, and the frame prior's fit once the evidence has decided against it.
-Deterministic (chi-squares and iteration counts only); a record the model fits keeps its answer."""
+a stall far from converging, the frame prior's fit once the evidence has decided against it, and a
+fit whose lift has arrived (issue 32: converged). Deterministic (chi-squares, iteration counts and
+the local model only); a record the model fits keeps its answer."""
 
 import dataclasses
 
 import numpy as np
 import pytest
 
+from wingopt.estimation.core.least_squares import Stop
 from wingopt.estimation.records import RecordSettings, identify_record
 from wingopt.estimation.transient.stopping import (
+    ARRIVED_LIFT,
     DECIDED_NATS,
     STALL_MIN_DECREMENT,
     STALL_WINDOW,
@@ -80,17 +83,29 @@ def test_the_monitor_sees_every_iterate_and_its_stop_counts_on_the_budget():
     assert seen == list(range(full.iterations))  # every iterate short of the converged one, the start first
 
 
+def test_a_monitor_may_call_a_fit_converged():
+    from wingopt.estimation.core.record_fit import levenberg_marquardt
+
+    done = lambda it: Stop(True, "arrived") if it.index >= 2 else None  # noqa: E731 - a caller's own test
+    fit = levenberg_marquardt(_Cubic(), np.array([3.0, 5.0]), 40, monitor=done)
+    assert fit.converged and fit.iterations == 2 and fit.arrived == "arrived" and fit.stopped is None
+
+
 def test_a_record_the_model_fits_keeps_its_answer(fvk_short_record):
     model, meas = fvk_short_record
     full = identify_record(model, meas, RecordSettings(membrane_model="fvk", stop_early=False))
     fast = identify_record(model, meas, RecordSettings(membrane_model="fvk"))
-    assert float(fast.lift[-1]) == float(full.lift[-1])
     # the band holds the frame prior's lift (frame_check.span_other): the finished fit's when it runs to
-    # the end, one Gauss-Newton step from where a decided fit stopped otherwise (measured here 0.0744
-    # against 0.0615 N); without that term the two bands are the same to the last digit
+    # the end, one Gauss-Newton step from where a decided fit stopped otherwise (measured here 0.0762
+    # against 0.0616 N); without that term the two bands are the fit's own
     spread = [r.info["frame_check"].get("lift_spread", 0.0) for r in (fast, full)]
     own = [np.sqrt(float(r.lift_std[-1]) ** 2 - d**2) for r, d in zip((fast, full), spread)]
-    assert own[0] == pytest.approx(own[1], rel=1e-9)
+    # the main fit stops once its lift has arrived (stopping.arrived: 7 iterations, not 11): its lift
+    # within ARRIVED_LIFT of its sigma of the finished fit's (measured 0.0013 of it), its band the same
+    # to 1 % (measured 0.8 %)
+    assert "converged_by" in fast.info and "converged_by" not in full.info
+    assert abs(float(fast.lift[-1]) - float(full.lift[-1])) < ARRIVED_LIFT * own[1]
+    assert own[0] == pytest.approx(own[1], rel=0.02)
     assert float(fast.lift_std[-1]) == pytest.approx(float(full.lift_std[-1]), rel=0.25)
     assert fast.info["converged"] == full.info["converged"]
     assert fast.info["budget"]["iterations"] <= full.info["budget"]["iterations"]

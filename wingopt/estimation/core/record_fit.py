@@ -7,8 +7,9 @@ damping on the dense normal equations ``(J^T J + mu diag) d = -J^T r`` (data and
 together) and the exact Jacobian at every accepted point. It stops when the undamped Gauss–Newton
 step would remove less than ``tol`` chi-square units (the Newton decrement), after ``max_iter``
 iterations, when the record's :class:`Budget` is spent, or when a ``monitor`` shown every iterate
-(:class:`Iterate`) gives a reason to stop (:mod:`.stopping`). The Gauss–Newton matrix at the
-optimum is the posterior precision (the cost is a chi-square)."""
+(:class:`Iterate`) gives a reason to stop (:mod:`.stopping`: a reason in words stops it not
+converged; a :class:`~.least_squares.Stop` is taken as it says, a caller's own convergence test).
+The Gauss–Newton matrix at the optimum is the posterior precision (the cost is a chi-square)."""
 
 from __future__ import annotations
 
@@ -45,6 +46,8 @@ class Fit:
     step's predicted decrease from the start)."""
     stopped: str | None = None
     """The monitor's reason when it stopped the fit (not converged), else ``None``."""
+    arrived: str | None = None
+    """The monitor's reason when it called the fit converged (its own test), else ``None``."""
 
     @property
     def cost(self) -> float:
@@ -82,8 +85,9 @@ class Iterate:
         return float(-0.5 * self.cost - 0.5 * np.linalg.slogdet(self.precision)[1])
 
 
-Monitor = Callable[[Iterate], "str | None"]
-"""Called once per iterate that has not converged; a string stops the fit and is its reason."""
+Monitor = Callable[[Iterate], "str | Stop | None"]
+"""Called once per iterate that has not converged; a string stops the fit (not converged) and is its
+reason, a :class:`~.least_squares.Stop` stops it as it says (``converged`` or not)."""
 
 
 def cost(problem, theta) -> tuple[float, float]:
@@ -180,6 +184,7 @@ class _RecordStopping(StoppingPolicy):
         self.first_decrement: float | None = None
         self.decrement = float("nan")
         self.stopped: str | None = None
+        self.arrived: str | None = None
 
     def before_iteration(self, state: SolverState) -> Stop | None:
         local = state.local
@@ -196,10 +201,15 @@ class _RecordStopping(StoppingPolicy):
         if self.budget is not None and self.budget.exhausted:
             return Stop(False, "out of budget")
         if self.monitor is not None:
-            self.stopped = self.monitor(Iterate(state.iterations, state.x, local.cost, decrement, local.H, local.g))
-            if self.stopped is not None:
-                log.debug("LM: stopped by its monitor after %d iterations: %s", state.iterations, self.stopped)
-                return Stop(False, self.stopped)
+            verdict = self.monitor(Iterate(state.iterations, state.x, local.cost, decrement, local.H, local.g))
+            if verdict is not None:
+                stop = verdict if isinstance(verdict, Stop) else Stop(False, verdict)
+                if stop.converged:
+                    self.arrived = stop.reason
+                else:
+                    self.stopped = stop.reason
+                log.debug("LM: stopped by its monitor after %d iterations: %s", state.iterations, stop.reason)
+                return stop
         if self.budget is not None:
             self.budget.used += 1
         return None
@@ -229,7 +239,8 @@ def fit_record(
     deviations of the minimum of the local model in every direction). The damped step's own
     predicted decrease is no test: with a large damping it is small far from the minimum. A spent
     ``budget`` stops it before the next iteration (``out_of_budget``; not converged), and so does a
-    ``monitor`` that returns a reason for an iterate (``Fit.stopped``).
+    ``monitor`` that returns a reason for an iterate (``Fit.stopped``); a monitor's converged
+    :class:`~.least_squares.Stop` ends it converged (``Fit.arrived``).
     """
     policy = _RecordStopping(max_iter, tol, budget, monitor)
     st = least_squares_fit(_RecordAdapter(problem), np.array(theta0, dtype=float), policy, _DAMPING)
@@ -238,7 +249,8 @@ def fit_record(
     out = not converged and it < max_iter and budget is not None and budget.exhausted
     rd = local.rd
     data, prior = float(rd @ rd), float(local.rp @ local.rp)
-    return Fit(st.x, data, prior, local.H, local.Jd, rd, it, converged, out, policy.first_decrement, policy.stopped)
+    decrement = policy.first_decrement
+    return Fit(st.x, data, prior, local.H, local.Jd, rd, it, converged, out, decrement, policy.stopped, policy.arrived)
 
 
 levenberg_marquardt = fit_record

@@ -240,7 +240,7 @@ def _finish(run: RecordRun, rp, fit, fits, chosen, ad, resolved=None) -> tuple[I
         heading = None if heading is None else -heading  # the mirrored fit's step: the lift is odd in the load
     wall = time.perf_counter() - run.t0
     res = fit_result(rp, fit, fits, chosen, ad, run.sigma, run.noise_source, wall, s, spread, prior_info)
-    if fit.out_of_budget:
+    if fit.out_of_budget or (not fit.converged and fit.stopped is None):  # a stop's band is widened by its rule
         res = cut_short(res, rp, fit)
     return with_tension_profile(res, rp, fit, ad, run.fit), fit, heading
 

@@ -21,7 +21,7 @@ from wingopt.estimation.core.record_settings import RecordSettings
 from wingopt.estimation.core.start import initial_state_prior, modal_model
 from wingopt.estimation.noise import resolve_noise_std
 from wingopt.estimation.transient.initial_shape import declared_start
-from wingopt.estimation.transient.stopping import EarlyStop
+from wingopt.estimation.transient.stopping import EarlyStop, arrived
 from wingopt.measurements.series import Measurements
 from wingopt.membrane import MembraneModel
 
@@ -83,11 +83,12 @@ class RecordRun:
 
     def fit(self, r: RecordProblem, theta0: np.ndarray, cap: RecordSettings | None = None, rules=()) -> Fit:
         """Levenberg–Marquardt on ``r`` from ``theta0`` within the record's budget (``cap.max_iter``
-        iterations at most; ``rules``: its early stops, when ``stop_early``)."""
+        iterations at most; ``rules``: its early stops, when ``stop_early``, and then the lift's
+        convergence test, :func:`.stopping.arrived`)."""
         cap = self.s if cap is None else cap
         if not (rules and self.s.stop_early):
             return levenberg_marquardt(r, theta0, cap.max_iter, budget=self.budget)
-        monitor = EarlyStop(rules)
+        monitor = EarlyStop((*rules, arrived(r)))  # a rule that stops it short first, as before
         f = levenberg_marquardt(r, theta0, cap.max_iter, budget=self.budget, monitor=monitor)
         if f.stopped is not None:
             self.stops[id(f)] = (monitor, f)
