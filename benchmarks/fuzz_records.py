@@ -116,12 +116,14 @@ def draw(index: int, seed: int = 0) -> dict:
 def _acquire(t: np.ndarray, y: np.ndarray, daq: str, oversample: int) -> tuple[np.ndarray, np.ndarray]:
     """What the DAQ hands over: the oversampled record filtered (causal, as the hardware does) and decimated."""
     fs = 1.0 / (t[1] - t[0])  # the oversampled rate; the record's is fs / oversample
+    # the DAQ runs before the record starts: its filter has settled on the wing's first state (a bubble
+    # held before its release, an equilibrium), not on zero
     if daq == "fir-0.45":  # a delta-sigma converter's linear-phase FIR: passband to 0.45 of the output rate
         taps = signal.firwin(16 * oversample + 1, 0.45 * fs / oversample, fs=fs)
-        y = signal.lfilter(taps, 1.0, y, axis=0)
+        y = signal.lfilter(taps, 1.0, y, axis=0, zi=signal.lfilter_zi(taps, 1.0)[:, None] * y[0])[0]
     elif daq == "butter-fs/3":  # an analog 4th-order Butterworth at a third of the output rate
         sos = signal.butter(4, fs / oversample / 3, fs=fs, output="sos")
-        y = signal.sosfilt(sos, y, axis=0)
+        y = signal.sosfilt(sos, y, axis=0, zi=signal.sosfilt_zi(sos)[:, :, None] * y[0])[0]
     return t[::oversample], y[::oversample]
 
 

@@ -65,7 +65,10 @@ JEKF_NOISE = NoiseRule(order=3, tail=1.0, statistic="mad")
 
 
 def estimate_noise_std(
-    values: np.ndarray, rule: NoiseRule = MHE_NOISE, names: Sequence[str] | None = None
+    values: np.ndarray,
+    rule: NoiseRule = MHE_NOISE,
+    names: Sequence[str] | None = None,
+    difference_gain: float | None = None,
 ) -> np.ndarray:
     """Per-sensor noise standard deviation estimated from the data alone.
 
@@ -77,6 +80,9 @@ def estimate_noise_std(
         Differences, tail and statistic (:data:`MHE_NOISE` by default).
     names : sequence of str, optional
         Sensor names for the error messages.
+    difference_gain : float, optional
+        The differences' variance over the noise's: ``C(2k, k)`` for white noise (default); a DAQ's
+        filter colours the noise (:meth:`~wingopt.measurements.acquisition.Acquisition.difference_gain`).
 
     Returns
     -------
@@ -88,7 +94,7 @@ def estimate_noise_std(
         raise InputError(f"values: shape {v.shape}, expected (samples, sensors)")
     k = rule.order
     start = int(v.shape[0] * (1 - rule.tail))
-    norm = math.sqrt(math.comb(2 * k, k))
+    norm = math.sqrt(math.comb(2 * k, k) if difference_gain is None else difference_gain)
     out = np.empty(v.shape[1])
     for i in range(v.shape[1]):
         d = np.diff(v[start:, i], k)
@@ -117,13 +123,16 @@ def resolve_noise_std(
     problem=None,
     rule: NoiseRule = MHE_NOISE,
     allow_zero: bool = False,
+    acquisition=None,
+    fs: float | None = None,
 ) -> tuple[np.ndarray, str]:
     """The noise std every estimator uses, and where it came from: the one precedence rule.
 
     ``given`` (an argument, ``--noise-std``) > ``measured`` (what the measurements carry, e.g. a
     simulation's) > ``problem`` (the problem file's ``identification.noise_std``) > estimated from
     ``values`` with ``rule``. A value that is not positive and finite is refused in one line
-    (an estimate of zero, noise-free or quantised data, too, unless ``allow_zero``).
+    (an estimate of zero, noise-free or quantised data, too, unless ``allow_zero``). A declared
+    ``acquisition`` (the record sampled at ``fs``, Hz) sets how the differences see the noise.
     """
     p = np.shape(values)[1]
     for value, source in ((given, "argument"), (measured, "measurements"), (problem, "problem file")):
@@ -132,7 +141,8 @@ def resolve_noise_std(
             if not np.all(np.isfinite(sigma) & (sigma > 0)):
                 raise InputError(f"noise_std = {sigma.tolist()} ({source}): expected positive finite values")
             return sigma, source
-    sigma = estimate_noise_std(values, rule, names)
+    gain = None if acquisition is None else acquisition.difference_gain(rule.order, fs)
+    sigma = estimate_noise_std(values, rule, names, gain)
     if np.any(sigma <= 0) and not allow_zero:
         raise InputError("noise estimate: a sensor looks noise-free (constant or quantised); give noise_std")
     return sigma, "estimated from the data"

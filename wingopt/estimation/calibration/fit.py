@@ -12,6 +12,11 @@ The initial shape is the problem's bubble when it declares one (a release from a
 otherwise it is unknown: zero-mean with the data's scale, and the fit starts from the best of a
 short scan of amplitudes along each of the lowest modes (the sensors are quadratic: at rest they
 have no sensitivity to anything).
+
+A record whose start the first fit does not follow (a tap's pulse, a localized pluck: the misfit is
+the first segment's, or the fit does not converge) is refitted from later starts and with every
+mode's initial motion unknown; the answer is the median of the fits that explain the record, its
+band over all of them (:mod:`.refit`). A record the first fit explains keeps it unchanged.
 """
 
 from __future__ import annotations
@@ -23,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from wingopt.errors import InputError
+from wingopt.estimation.calibration.refit import Candidate, combine, later_starts, refit_warning
 from wingopt.estimation.core.adequacy import assess
 from wingopt.estimation.core.load_model import LoadShapes
 from wingopt.estimation.core.model_form import prestrain_std_with_model_form
@@ -51,6 +57,13 @@ SHORTLIST = 3
 """Starts fitted briefly (``BRIEF`` iterations); the best is then fitted to convergence."""
 
 BRIEF = 12
+
+START_RATIO = 2.0
+"""A misfit is the record's start's when its first segment misfits this many times the later ones
+(a tap or a localized pluck at 300 Hz: 7-24 against 1.0-1.5)."""
+
+WIDENING_AGREE = 1.1
+"""A refitted calibration counts as adequate when its fits' spread widens no band beyond this."""
 
 
 @dataclass(frozen=True)
@@ -140,15 +153,22 @@ def calibrate(
     meas = measurements
     if meas.count < 20:
         raise InputError(f"calibration record: {meas.count} samples, need at least 20 (a ringing of ~0.1 s)")
+    acquisition, fs = model.problem.acquisition, 1.0 / float(np.median(np.diff(meas.t)))
+    declared = s.declaration.noise_std
     sigma, noise_source = resolve_noise_std(
-        meas.values, meas.sensor_names, noise_std, meas.noise_std, s.declaration.noise_std
+        meas.values, meas.sensor_names, noise_std, meas.noise_std, declared, acquisition=acquisition, fs=fs
     )
-    rp, known = _calibration_problem(model, meas, s, sigma)
-    fit = _best_fit(rp, known, 2 * s.max_iter)
-    resid = np.full(rp.y.shape, np.nan)
-    resid[rp.valid] = fit.residuals
-    ad = assess(meas.t, resid, fit.effective_parameters, s.segment_s)
-    est, std, corr = _posterior(rp, fit, ad.inflation)
+    first = _candidate(model, meas, s, sigma, 0, None, "first")
+    fits, chosen = [first], first
+    est, std, corr = first.parameters, first.parameters_std, first.correlation
+    adequate, warnings = first.adequate, []
+    if _start_not_followed(first):
+        fits = fits + _refits(model, meas, s, sigma)
+        combined = combine(fits)
+        chosen, est, std, corr = combined.closest, combined.parameters, combined.parameters_std, combined.correlation
+        adequate = first.adequate and combined.widening <= WIDENING_AGREE
+        warnings.append(refit_warning(first, combined, fits))
+    rp, known, fit, ad = chosen.payload
     info = {
         "iterations": fit.iterations,
         "converged": fit.converged,
@@ -160,23 +180,75 @@ def calibrate(
         "prior": {n: rp.prior.mean_std(n) for n in PARAMETERS},
         "wall_s": time.perf_counter() - t0,
     }
-    warnings = _warnings(rp, fit, ad, std)
-    return Calibration(est, std, corr, float(ad.chi2_per_datum), bool(ad.adequate), warnings, info)
+    if len(fits) > 1:
+        info["fit"] = chosen.label
+        info["fits"] = [f.as_dict() for f in fits]
+        info["iterations_total"] = sum(f.payload[2].iterations for f in fits)
+    warnings = _warnings(rp, fit, ad, std) + warnings
+    return Calibration(est, std, corr, float(first.chi2_per_datum), bool(adequate), warnings, info)
+
+
+def _start_not_followed(first: Candidate) -> bool:
+    """Whether the first fit says the model does not follow the record's start: a misfit that is the
+    start's (its first segment's chi-square per datum over ``START_RATIO`` times the later segments'
+    median; a misfit all along, a load on the wing, is no start's and a refit would not mend it), or
+    an adequate fit that did not converge (a cost with several minima, a localized pluck's)."""
+    if first.adequate:
+        return not first.converged
+    seg = first.payload[3].segment_chi2_per_datum
+    return len(seg) > 2 and seg[0] > START_RATIO * float(np.median(seg[1:]))
+
+
+def _candidate(
+    model: MembraneModel,
+    meas: Measurements,
+    s: RecordSettings,
+    sigma: np.ndarray,
+    k: int,
+    modes: int | None,
+    label: str,
+) -> Candidate:
+    """The calibration fit of the record from its sample ``k`` on (the initial state there unknown in
+    its ``modes`` lowest modes; ``None``: the settings' ``state_modes``)."""
+    part = meas if k == 0 else Measurements(meas.t[k:], meas.values[k:], meas.sensor_names, None, meas.source)
+    rp, known = _calibration_problem(model, part, s, sigma, modes)
+    fit = _best_fit(rp, known, 2 * s.max_iter)
+    resid = np.full(rp.y.shape, np.nan)
+    resid[rp.valid] = fit.residuals
+    ad = assess(part.t, resid, fit.effective_parameters, s.segment_s)
+    est, std, corr = _posterior(rp, fit, ad.inflation)
+    log.debug("calibration fit %s: %s ± %s, chi2 %.3f", label, est, std, ad.chi2_per_datum)
+    start_s = float(part.t[0] - meas.t[0])
+    return Candidate(
+        label, start_s, est, std, corr, float(ad.chi2_per_datum), bool(ad.adequate), fit.converged, (rp, known, fit, ad)
+    )
+
+
+def _refits(model: MembraneModel, meas: Measurements, s: RecordSettings, sigma: np.ndarray) -> list[Candidate]:
+    """The record fitted from its later starts, and from its first sample with every mode's initial
+    motion unknown (a localized shape rings in all of them)."""
+    fits = [
+        _candidate(model, meas, s, sigma, k, None, f"from {1e3 * (meas.t[k] - meas.t[0]):.0f} ms")
+        for k in later_starts(meas.t)
+    ]
+    return fits + [_candidate(model, meas, s, sigma, 0, s.modes, "every mode's initial motion")]
 
 
 def _calibration_problem(
-    model: MembraneModel, meas: Measurements, s: RecordSettings, sigma: np.ndarray
+    model: MembraneModel, meas: Measurements, s: RecordSettings, sigma: np.ndarray, modes: int | None = None
 ) -> tuple[RecordProblem, bool]:
     """The record's least-squares problem without load unknowns (the modal model at the record's
-    sample period, the declared priors); and whether the initial shape is known."""
+    sample period, the declared priors, the initial state unknown in its ``modes`` lowest modes,
+    default the settings' ``state_modes``); and whether the initial shape is known."""
     dt = float(np.median(np.diff(meas.t)))
     substeps = max(s.substeps, int(np.ceil(dt / s.substep_s - 1e-9)))
     bm = modal_model(model, s.membrane_model, min(s.modes, model.n), dt, substeps, s.stretch_gain, s.cubic_modes)
     problem, declared = model.problem, s.declaration
     prior = ParameterPrior.from_problem(problem, PARAMETERS, s.prestrain_rel, s.damping_rel, declaration=declared)
     x_mean, x_std, known = initial_state_prior(bm, problem, meas.values, declared.initial_deflection)
-    shapes, ms = LoadShapes.none(model), min(s.state_modes, bm.m)
-    rp = RecordProblem(bm, shapes, meas.t, meas.values, sigma, prior, x_mean, x_std, state_modes=ms)
+    shapes, ms = LoadShapes.none(model), min(s.state_modes if modes is None else modes, bm.m)
+    daq = None if problem.acquisition is None else problem.acquisition.sample_filter(1.0 / dt)
+    rp = RecordProblem(bm, shapes, meas.t, meas.values, sigma, prior, x_mean, x_std, state_modes=ms, daq=daq)
     return rp, known
 
 

@@ -24,6 +24,7 @@ import numpy as np
 from wingopt.errors import InputError
 from wingopt.estimation.core.load_model import GustAmplitude, LoadShapes
 from wingopt.estimation.declaration import declaration_of
+from wingopt.measurements.acquisition import SampleFilter
 from wingopt.membrane.forward import ForceTangent, ModalMembrane
 from wingopt.problem.membrane import IdentificationSettings
 
@@ -108,6 +109,10 @@ class RecordProblem:
     nonlinear: bool = True
     state_modes: int | None = None
     jacobian: str = "tangent"
+    daq: SampleFilter | None = None
+    """The DAQ's filter as it acts on the samples
+    (:meth:`~wingopt.measurements.acquisition.Acquisition.sample_filter`): the predicted outputs pass
+    through it as the record did; ``None``: point sampling."""
 
     def __post_init__(self) -> None:
         ms = self.model.m if self.state_modes is None else int(self.state_modes)
@@ -225,8 +230,7 @@ class RecordProblem:
         theta = np.asarray(theta, dtype=float)
         Rp = self.prior_matrix
         if not jacobian:
-            Q = self.trajectory(theta[None])[:, 0].real
-            pred = self.model.outputs(Q)
+            _, pred = self.predicted(theta)
             return ((self.y - pred) / self.sigma)[self.valid], Rp @ theta
         if self.jacobian == "tangent":
             Qr, dQ = self._tangent(theta)
@@ -236,6 +240,8 @@ class RecordProblem:
         CQ = self.model.sensor_products(Qr)
         pred = np.einsum("kpi,ki->kp", CQ, Qr)
         J = -2.0 * np.matmul(CQ, dQ.transpose(0, 2, 1)) / self.sigma[None, :, None]  # batched GEMM, not einsum
+        if self.daq is not None:  # a linear filter: the filtered prediction's Jacobian is the filtered Jacobian
+            pred, J = self.daq(pred), self.daq(J)
         return ((self.y - pred) / self.sigma)[self.valid], Rp @ theta, J[self.valid], Rp
 
     def _tangent(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -278,7 +284,8 @@ class RecordProblem:
     def predicted(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Modal trajectory ``(N, m)`` and predicted outputs ``(N, p)``."""
         Q = self.trajectory(np.asarray(theta, float)[None])[:, 0].real
-        return Q, self.model.outputs(Q)
+        pred = self.model.outputs(Q)
+        return Q, pred if self.daq is None else self.daq(pred)
 
     def load_history(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Shape coefficients ``c`` and amplitude ``1 + g(t_k)`` ``(N,)``."""

@@ -252,6 +252,13 @@ def _warnings(best: Solution, sols: list[Solution], w: np.ndarray, scr, calibrat
             f"the sensors' mean misfits the load prior (chi-square {best.static_chi2:.2f} per sensor): the band is "
             f"widened x{misfit_scale(best.static_chi2):.2f} for it"
         )
+    converged = best.buffeting.converged if best.buffeting is not None else best.fit.converged
+    if not converged:  # the status says not_converged; a user reads why here (fuzz #64: it said nothing)
+        what = "buffeting fit" if best.buffeting is not None else "static fit (or its full-order correction)"
+        out.append(
+            f"the {what} did not settle within its iterations: the lift is not the optimum's, and its band "
+            "does not hold the distance to it"
+        )
     if best.spectral_chi2 > ADEQUATE[1]:
         out.append(
             f"the model spectrum does not fit the record's (residual mean square {best.spectral_chi2:.2f}, expected 1)"

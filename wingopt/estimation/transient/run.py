@@ -59,16 +59,18 @@ class RecordRun:
         self.stops: dict[int, tuple[EarlyStop, Fit]] = {}
         self.skipped: list[str] = []
         ident = s.declaration
+        dt = float(np.median(np.diff(meas.t)))
+        acquisition = model.problem.acquisition
         sigma, self.noise_source = resolve_noise_std(
-            meas.values, meas.sensor_names, None, meas.noise_std, ident.noise_std
+            meas.values, meas.sensor_names, None, meas.noise_std, ident.noise_std, acquisition=acquisition, fs=1 / dt
         )
         self.sigma = np.asarray(sigma, float)
         self.p0 = ident.initial_load if initial_load is None else float(initial_load)
-        dt = float(np.median(np.diff(meas.t)))
         substeps = max(s.substeps, int(np.ceil(dt / s.substep_s - 1e-9)))
         self.bm = modal_model(
             model, s.membrane_model, min(s.modes, model.n), dt, substeps, s.stretch_gain, s.cubic_modes
         )
+        self.daq = None if acquisition is None else acquisition.sample_filter(1.0 / dt)
         self.shapes, self.weigh_frame = _load_prior(model, self.p0, s)
         self.prior = ParameterPrior.from_problem(model.problem, s.free, s.prestrain_rel, s.damping_rel, ident)
         self._initial_state(ident.initial_deflection)
@@ -113,6 +115,7 @@ class RecordRun:
             None,
             nonlinear,
             min(s.state_modes, self.bm.m),
+            daq=self.daq,
         )
 
 
