@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from wingopt.estimation.load_space import LoadSpace, build_load_space
+from wingopt.estimation.core.load_space import LoadSpace, build_load_space
 from wingopt.estimation.mhe import MHESettings, MovingHorizonEstimator
 from wingopt.fe import DX, DXX, DY, DYY, VALUE, assemble, separable
 from wingopt.membrane import MembraneModel, TruthRecord

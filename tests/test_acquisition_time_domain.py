@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 import scipy.signal as sig
 
-from wingopt.estimation.noise import estimate_noise_std
+from wingopt.estimation.core.noise import estimate_noise_std
 from wingopt.measurements.acquisition import Acquisition
 
 FS, OVER = 300.0, 16

@@ -18,7 +18,7 @@ ENTRY_POINTS = [
     "wingopt.estimation.mhe:mhe_identify",
     "wingopt.estimation.jekf:jekf_identify",
     "wingopt.estimation.jekf:identify",
-    "wingopt.estimation.noise:estimate_noise_std",
+    "wingopt.estimation.core.noise:estimate_noise_std",
     "wingopt.workflows.protocols:simulate_case",
     "wingopt.membrane.truth:simulate_truth",
     "wingopt.membrane.forward:forward_model",

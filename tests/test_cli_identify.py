@@ -208,7 +208,7 @@ def test_a_fixed_lambda_reaches_every_method(small_file, tmp_path, capsys, metho
 
 
 def test_lambda_rules_have_distinct_names_per_method(small_file, tmp_path, capsys):
-    from wingopt.estimation.lambda_rules import resolve
+    from wingopt.estimation.core.lambda_rules import resolve
 
     # One word, two rules: "discrepancy" was Morozov's principle for the MHE and a likelihood-ratio
     # test on late innovations for the JEKF. Each now has its own name; the old word still resolves.

@@ -16,7 +16,7 @@ import wingopt.cli as cli
 from wingopt.cli import main
 from wingopt.cli.identify import _print, route_words
 from wingopt.errors import InputError
-from wingopt.estimation.sanity import check_time_step
+from wingopt.estimation.core.sanity import check_time_step
 from wingopt.workflows.design import DesignProgress
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -10,6 +10,7 @@ import pytest
 
 from wingopt.dynamics import zoh
 from wingopt.errors import InputError
+from wingopt.estimation.core.noise import JEKF_NOISE, estimate_noise_std, noise_variance
 from wingopt.estimation.jekf import (
     JEKFSettings,
     JointEKF,
@@ -21,7 +22,6 @@ from wingopt.estimation.jekf import (
     tuned_identify,
 )
 from wingopt.estimation.jekf.presets import noise_free
-from wingopt.estimation.noise import JEKF_NOISE, estimate_noise_std, noise_variance
 from wingopt.measurements import Measurements
 from wingopt.membrane import MembraneModel, bubble, forward_model, load_case
 from wingopt.workflows.protocols import simulate_case

@@ -11,18 +11,18 @@ import pytest
 import scipy.sparse as sp
 
 from wingopt.errors import InputError, SolverError
-from wingopt.estimation.load_space import build_load_space, edge_mass
-from wingopt.estimation.mhe import MHESettings, MovingHorizonEstimator, mhe_identify
-from wingopt.estimation.mhe.cold_start import sign_score
-from wingopt.estimation.mhe.model import MHEModel
-from wingopt.estimation.mhe.solvers import make_solver
-from wingopt.estimation.noise import estimate_noise_std
-from wingopt.estimation.regularization import (
+from wingopt.estimation.core.load_space import build_load_space, edge_mass
+from wingopt.estimation.core.noise import estimate_noise_std
+from wingopt.estimation.core.regularization import (
     LambdaPoint,
     choose_lambda,
     discrepancy_lambda,
     knee_lambda,
 )
+from wingopt.estimation.mhe import MHESettings, MovingHorizonEstimator, mhe_identify
+from wingopt.estimation.mhe.cold_start import sign_score
+from wingopt.estimation.mhe.model import MHEModel
+from wingopt.estimation.mhe.solvers import make_solver
 from wingopt.fe import VALUE, EdgeCondition, SplineBasis1D, TensorSpace, assemble, assemble_mixed, separable
 from wingopt.membrane import MembraneModel, forward_model, load_case
 from wingopt.optim.status import SolveStatus

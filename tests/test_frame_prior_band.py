@@ -14,7 +14,7 @@ import pytest
 import wingopt as wo
 import wingopt.membrane as wm
 from wingopt.estimation.core.frame_check import EXCLUDES, REJECTS, weigh
-from wingopt.estimation.result import IdentificationResult
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.measurements import Measurements
 
 

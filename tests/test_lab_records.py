@@ -194,7 +194,7 @@ def test_arrays_pass_the_csv_readers_clock_checks(model):
     """An array whose time column jitters by 20 % passed without a word where the same rows as a CSV
     were refused; 3 % is read as the clock and said in the data checks."""
     from wingopt.errors import InputError
-    from wingopt.estimation.sanity import as_measurements, record_checks
+    from wingopt.estimation.core.sanity import as_measurements, record_checks
     from wingopt.measurements import Measurements
 
     names = model.problem.sensor_names
@@ -260,7 +260,7 @@ def test_a_provisional_failure_holds_the_prior_until_the_start_up(fvk_short_reco
 def test_the_batch_check_carries_the_priors_spread_and_flags_a_disagreeing_filter():
     from types import SimpleNamespace
 
-    from wingopt.estimation.result import Estimate
+    from wingopt.estimation.core.result import Estimate
     from wingopt.estimation.streaming.batch_check import BatchCheck
 
     info = {"frame_check": {"lift_spread": 0.03}, "load_prior": {"lift_spread": 0.04}}

@@ -15,7 +15,7 @@ import pytest
 
 import wingopt as wo
 from wingopt.cli import EXIT_INTERNAL, main
-from wingopt.estimation.sanity import SCALE_BAND, scale_warnings
+from wingopt.estimation.core.sanity import SCALE_BAND, scale_warnings
 
 ROOT = Path(__file__).resolve().parents[1]
 # the tunnel stand-in: readings peak at 0.0197 (S1), inside the band; x1e-3 is below it (the calibration

@@ -17,8 +17,8 @@ from _ramp_record import write_record
 import wingopt as wo
 from wingopt.dynamics.statespace import StateSpace
 from wingopt.estimation.calibration.fit import Calibration
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.estimation.options import IdentifyOptions
-from wingopt.estimation.result import IdentificationResult
 from wingopt.membrane import MembraneModel
 from wingopt.status import RunStatus, from_info, from_solver_statuses, worst
 
@@ -180,7 +180,7 @@ def test_simulated_records_get_no_unit_hint_and_neither_do_the_same_values_as_da
     """The protocol's L2 reads beyond the pre-strain (it once raised "values in percent?" on the
     package's own simulation); the band reaches twice the pre-strain, the FvK regime, so neither the
     simulation nor the same values as data are hinted at, and values beyond it are, once, sourced."""
-    from wingopt.estimation.sanity import SCALE_HIGH
+    from wingopt.estimation.core.sanity import SCALE_HIGH
 
     problem = wo.load_problem("membrane").with_mesh((13, 7))
     sim = wo.identify(problem, load="L2", truth_nodes=None, t_end=0.3, method="mhe")

@@ -4,7 +4,7 @@ that misfits the samples flags the filter that agrees with it (issue 32, fuzz re
 
 from types import SimpleNamespace
 
-from wingopt.estimation.result import Estimate
+from wingopt.estimation.core.result import Estimate
 from wingopt.estimation.streaming.batch_check import BatchCheck
 
 FRAME = "the sensors do not tell whether the pressure reaches the frame: the lift and its band mix the two"

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from wingopt.estimation.result import Estimate, IdentificationResult
+from wingopt.estimation.core.result import Estimate, IdentificationResult
 from wingopt.estimation.streaming.steady_refit import SteadyRefit
 
 NAMES = ("S1", "S2", "S3", "S4")

@@ -27,7 +27,7 @@ from scipy.integrate import simpson, trapezoid
 
 import wingopt as wo
 from wingopt.errors import InputError
-from wingopt.estimation.result import IdentificationResult
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.membrane import MembraneModel
 from wingopt.results import to_jsonable
 from wingopt.results.field import integral, mean_field

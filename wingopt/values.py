@@ -119,7 +119,7 @@ class NoiseLevel:
 class LambdaChoice:
     """How an estimator's Tikhonov weight is set: a fixed value, or a data-only rule by name.
 
-    ``rule`` names a rule of :mod:`wingopt.estimation.lambda_rules` (resolved per estimator there);
+    ``rule`` names a rule of :mod:`wingopt.estimation.core.lambda_rules` (resolved per estimator there);
     ``None`` means the estimator's default rule.
     """
 

@@ -2,7 +2,7 @@
 
 The plain A-criterion assumes the Bayes estimator of its own prior. The MHE is not that: it
 fits a Tikhonov estimate whose weight ``lambda`` is chosen from the data (the misfit knee of
-:mod:`wingopt.estimation.regularization`), in a fixed-edge load space, so its error is mostly
+:mod:`wingopt.estimation.core.regularization`), in a fixed-edge load space, so its error is mostly
 *bias*. For a nominal pressure ``P`` (projection ``f`` onto the load space) and a layout, the
 linearised estimate is ``f^ = A_lambda f + noise`` with the resolution operator
 ``A_lambda = (B^T H B + lambda Lam)^-1 B^T H B`` (``H``: the layout's information on the modal load
@@ -33,7 +33,7 @@ import scipy.linalg as sla
 from wingopt.design.criteria import state_prior_std
 from wingopt.design.information import ModalSensitivity, SegmentInformation
 from wingopt.design.stack import InfoStack, dense_stack
-from wingopt.estimation.regularization import KNEE_EXCESS, KNEE_SAFETY
+from wingopt.estimation.core.regularization import KNEE_EXCESS, KNEE_SAFETY
 from wingopt.fe import integrate
 
 __all__ = ["BayesRisk"]

@@ -6,7 +6,7 @@ moving-horizon estimator (:mod:`wingopt.estimation.mhe`) and the seed's joint EK
 simulated protocols and the ``identify`` use case sit above, in :mod:`wingopt.workflows`.
 """
 
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.estimation.mhe import MHESettings, MovingHorizonEstimator, mhe_identify
-from wingopt.estimation.result import IdentificationResult
 
 __all__ = ["IdentificationResult", "MHESettings", "MovingHorizonEstimator", "mhe_identify"]

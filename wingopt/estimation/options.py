@@ -103,7 +103,7 @@ class IdentifyOptions:
     Attributes
     ----------
     lam : LambdaChoice
-        A fixed Tikhonov weight or a data-only rule (:mod:`wingopt.estimation.lambda_rules`).
+        A fixed Tikhonov weight or a data-only rule (:mod:`wingopt.estimation.core.lambda_rules`).
     window, stride : float (s) or int (samples)
         Moving-horizon window and step.
     solver : {"numpy", "cvxpy", "ipopt"}

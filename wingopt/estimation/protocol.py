@@ -22,7 +22,7 @@ from typing import Protocol
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.result import Estimate, IdentificationResult
+from wingopt.estimation.core.result import Estimate, IdentificationResult
 from wingopt.measurements import Measurements
 
 __all__ = ["Estimator", "RecordEstimator", "StreamEstimator"]

@@ -12,8 +12,8 @@ from __future__ import annotations
 import logging
 
 from wingopt.estimation.core.record_settings import LOAD_MODELS, MEMBRANE_MODELS, RecordSettings
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.estimation.declaration import with_declaration
-from wingopt.estimation.result import IdentificationResult
 from wingopt.estimation.steady.estimator import is_steady, steady_identify
 from wingopt.estimation.transient.estimator import transient_identify
 from wingopt.measurements.series import Measurements

@@ -18,16 +18,16 @@ import numpy as np
 
 from wingopt.errors import InputError
 from wingopt.estimation import jekf
+from wingopt.estimation.core.lambda_rules import resolve as resolve_rule
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.fullfield import fullfield_identify
-from wingopt.estimation.lambda_rules import resolve as resolve_rule
 from wingopt.estimation.mhe import mhe_identify
 from wingopt.estimation.mhe.model_check import check_mhe_result
 from wingopt.estimation.options import IdentifyOptions, apply_options
 from wingopt.estimation.protocol import Estimator, RecordEstimator, StreamEstimator
 from wingopt.estimation.records import RecordSettings, identify_record
 from wingopt.estimation.registry import EstimatorSpec, check_options, resolve
-from wingopt.estimation.result import IdentificationResult
 from wingopt.estimation.streaming import StreamingEstimator
 from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator
 from wingopt.estimation.streaming.steady_refit import SteadyRefit

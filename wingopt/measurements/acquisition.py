@@ -202,7 +202,7 @@ class Acquisition:
 
     def difference_gain(self, order: int, fs: float) -> float:
         """The variance of the record's noise's ``order``-th differences over its own variance: the
-        constant of a noise estimate from differences (:mod:`wingopt.estimation.noise`). White noise,
+        constant of a noise estimate from differences (:mod:`wingopt.estimation.core.noise`). White noise,
         point-sampled: ``C(2 order, order)`` (6 for second differences). Through the filter (the
         sensors' wideband noise comes before it, folded by the sampling: ``sum_j |H(f + j fs)|^2``)
         the differences see less of it (a 4th-order Butterworth at fs/3: 2.9 for 6): without this

@@ -39,7 +39,7 @@ class Measurements:
         Where the data came from (a file name, or ``"simulated L1 1% seed 0"``).
     simulated : bool
         The package simulated these values (:mod:`wingopt.membrane.truth`): they are in its own
-        units, so the unit and scale hints of :mod:`wingopt.estimation.sanity` do not apply.
+        units, so the unit and scale hints of :mod:`wingopt.estimation.core.sanity` do not apply.
     clock : dict, optional
         The stamps were jittered and read as a uniform clock: its fitted step and largest deviation
         (:meth:`~wingopt.measurements.clock.Clock.as_dict`); the data checks report it.

@@ -52,7 +52,7 @@ def netcdf_engine() -> str:
 
 def lift_dataframe(result):
     """The lift history with its band as a :class:`pandas.DataFrame`
-    (:meth:`IdentificationResult.to_dataframe <wingopt.estimation.result.IdentificationResult.to_dataframe>`)."""
+    (:meth:`IdentificationResult.to_dataframe <wingopt.estimation.core.result.IdentificationResult.to_dataframe>`)."""
     return result.to_dataframe()
 
 

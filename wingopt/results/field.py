@@ -32,7 +32,7 @@ __all__ = ["MeanField", "mean_field", "grid", "field_history", "basis_space"]
 
 def basis_space(result, model) -> Any:
     """The :class:`~wingopt.fe.space.TensorSpace` of ``result.load`` (the model's space when ``None``;
-    a :class:`~wingopt.estimation.load_space.LoadSpace` carries one)."""
+    a :class:`~wingopt.estimation.core.load_space.LoadSpace` carries one)."""
     space = result.load_space if result.load_space is not None else model.space
     return space if hasattr(space, "basis_matrix") else space.space
 

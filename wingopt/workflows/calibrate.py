@@ -23,7 +23,7 @@ from typing import Any
 from wingopt import resources
 from wingopt.errors import InputError
 from wingopt.estimation.calibration.fit import Calibration, calibrate
-from wingopt.estimation.sanity import as_measurements
+from wingopt.estimation.core.sanity import as_measurements
 from wingopt.measurements import Measurements, read_measurements
 from wingopt.membrane import MembraneModel
 from wingopt.problem import load_problem, read_problem_table

@@ -26,10 +26,10 @@ import numpy as np
 
 from wingopt import resources
 from wingopt.errors import InputError
-from wingopt.estimation import sanity
+from wingopt.estimation.core import sanity
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.estimation.options import IdentifyOptions
 from wingopt.estimation.registry import FRAME_METHODS, check_options, resolve
-from wingopt.estimation.result import IdentificationResult
 from wingopt.estimation.runners import build, check_settings
 from wingopt.measurements import Acquisition, ChannelMap, Measurements
 from wingopt.measurements.dic import DICFrames

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation import sanity
+from wingopt.estimation.core import sanity
 from wingopt.estimation.options import IdentifyOptions
 from wingopt.measurements import ChannelMap, Measurements, read_measurements
 from wingopt.measurements.dic import DICFrames

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wingopt.estimation import sanity
+from wingopt.estimation.core import sanity
 from wingopt.measurements.clock import jitter_note
 from wingopt.status import RunStatus
 

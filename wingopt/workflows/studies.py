@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.estimation.mhe import MHESettings, mhe_identify
-from wingopt.estimation.result import IdentificationResult
 from wingopt.fe import integrate
 from wingopt.membrane import MembraneModel, TruthRecord
 from wingopt.problem.membrane import MembraneProblem, StretchSensorSpec

@@ -32,11 +32,11 @@ from wingopt.estimation.calibration.refit import Candidate, combine, later_start
 from wingopt.estimation.core.adequacy import assess
 from wingopt.estimation.core.load_model import LoadShapes
 from wingopt.estimation.core.model_form import prestrain_std_with_model_form
+from wingopt.estimation.core.noise import resolve_noise_std
 from wingopt.estimation.core.record_fit import levenberg_marquardt
 from wingopt.estimation.core.record_problem import PARAMETERS, ParameterPrior, RecordProblem
 from wingopt.estimation.core.start import initial_state_prior, modal_model
 from wingopt.estimation.declaration import with_declaration
-from wingopt.estimation.noise import resolve_noise_std
 from wingopt.estimation.transient.estimator import RecordSettings
 from wingopt.measurements import Measurements
 from wingopt.membrane import MembraneModel

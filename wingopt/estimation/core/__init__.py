@@ -10,7 +10,14 @@
 * :mod:`.start` — the record fits' start-up (modal model, initial state prior, amplitude scan);
 * :mod:`.adequacy` — chi-square per datum and per segment, the flag and the band factor;
 * :mod:`.prior_check`, :mod:`.frame_check` — the evidence between load priors;
-* :mod:`.model_form` — the modal FvK model's prestrain model-form term.
+* :mod:`.model_form` — the modal FvK model's prestrain model-form term;
+* :mod:`.result` — :class:`~.result.IdentificationResult`, what every estimator returns;
+* :mod:`.noise` — the sensors' noise level from the data, and the one precedence rule;
+* :mod:`.sanity` — a record's and a sensor layout's sanity (refusals and warnings);
+* :mod:`.load_space` — the load bases (fixed edge, free);
+* :mod:`.regularization`, :mod:`.lambda_rules` — the Tikhonov weight chosen from the data, and
+  the rules' one registry;
+* :mod:`.distributions` — the chi-square tail the misfit tests use.
 """
 
 from wingopt.estimation.core.least_squares import (

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wingopt.estimation.distributions import chi2_sf
+from wingopt.estimation.core.distributions import chi2_sf
 
 __all__ = ["Adequacy", "assess", "SEGMENT_LEVEL"]
 

@@ -51,7 +51,7 @@ import dataclasses
 import numpy as np
 
 from wingopt.estimation.core.load_model import LoadShapes
-from wingopt.estimation.result import IdentificationResult
+from wingopt.estimation.core.result import IdentificationResult
 
 __all__ = ["FRAME_SHAPES", "REJECTS", "log_evidence", "embed", "weigh", "span_other", "extrapolated"]
 __all__ += ["decided", "mixture_note", "EXCLUDES", "reach", "covering"]

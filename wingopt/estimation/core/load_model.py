@@ -29,7 +29,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from wingopt.errors import InputError
-from wingopt.estimation.load_space import LoadSpace, build_load_space
+from wingopt.estimation.core.load_space import LoadSpace, build_load_space
 from wingopt.membrane import MembraneModel
 
 __all__ = ["LoadShapes", "GustAmplitude"]

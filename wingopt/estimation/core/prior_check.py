@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from wingopt.estimation.distributions import chi2_ppf
+from wingopt.estimation.core.distributions import chi2_ppf
 
 if TYPE_CHECKING:
     from wingopt.estimation.core.record_fit import Fit

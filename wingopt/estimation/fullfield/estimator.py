@@ -18,7 +18,7 @@
    scatter): the steady fit of the mean field is not the record's load; the band takes in the
    windows' lifts, the status is ``misfit`` and a warning says what moved (:mod:`.motion`).
 
-The result is the package's one :class:`~wingopt.estimation.result.IdentificationResult`; ``info``
+The result is the package's one :class:`~wingopt.estimation.core.result.IdentificationResult`; ``info``
 says where the tension came from, what the field itself says about it, how well the model fits
 (chi-square per datum), the in-plane check and the frames used.
 """
@@ -35,6 +35,7 @@ import numpy as np
 from wingopt.estimation.core.load_model import LoadShapes
 from wingopt.estimation.core.load_prior import load_priors, prior_kinds
 from wingopt.estimation.core.record_problem import ParameterPrior
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.fullfield.data import FieldData, field_data, inplane_check
 from wingopt.estimation.fullfield.frames import FrameLoads, frame_loads
@@ -45,7 +46,6 @@ from wingopt.estimation.fullfield.settings import AUTO_PRIORS, FullFieldSettings
 from wingopt.estimation.fullfield.steady import PrestrainPrior, SteadyFit, fit_prior
 from wingopt.estimation.fullfield.system import PressureFromShape
 from wingopt.estimation.fullfield.tension import MIN_FLUCTUATION, DynamicTension, dynamic_tension, fluctuation
-from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements.dic import DICFrames
 from wingopt.membrane.forward import FullStructure, full_model
 from wingopt.membrane.model import MembraneModel

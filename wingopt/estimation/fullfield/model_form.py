@@ -36,9 +36,9 @@ import numpy as np
 
 from wingopt.estimation.core.load_model import LoadShapes
 from wingopt.estimation.core.load_prior import KINDS, load_priors
+from wingopt.estimation.core.load_space import build_load_space
 from wingopt.estimation.fullfield.steady import SteadyFit
 from wingopt.estimation.fullfield.system import PressureFromShape, posterior
-from wingopt.estimation.load_space import build_load_space
 from wingopt.membrane.model import MembraneModel
 
 __all__ = ["ModelForm", "model_form", "RICHER", "LOOSER", "ADMITS", "SPLIT_SEED"]

@@ -14,8 +14,8 @@ import time
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.noise import JEKF_NOISE, noise_variance
-from wingopt.estimation.result import IdentificationResult
+from wingopt.estimation.core.noise import JEKF_NOISE, noise_variance
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.measurements.series import Measurements
 
 __all__ = ["WholeRecord"]

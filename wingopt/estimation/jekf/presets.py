@@ -17,11 +17,11 @@ from typing import Any
 import numpy as np
 
 from wingopt.errors import InputError
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.estimation.jekf.filter import JointEKF
 from wingopt.estimation.jekf.seed_lambda import LambdaSearch, _as_lambda, seed_lambda
 from wingopt.estimation.jekf.settings import JEKFSettings
 from wingopt.estimation.jekf.tuning import tuned_identify
-from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements.series import Measurements
 from wingopt.membrane.model import MembraneModel
 

@@ -48,8 +48,8 @@ class JEKFSettings:
     measurement_variance : float, sequence of float, or None
         ``R`` (diagonal): one variance for all sensors or one per sensor. ``None``: take
         ``Measurements.noise_std**2``, or estimate it from the data when the measurements carry
-        none (:func:`wingopt.estimation.noise.estimate_noise_std`, setting
-        :data:`~wingopt.estimation.noise.JEKF_NOISE`). Seed: ``1e-4``.
+        none (:func:`wingopt.estimation.core.noise.estimate_noise_std`, setting
+        :data:`~wingopt.estimation.core.noise.JEKF_NOISE`). Seed: ``1e-4``.
     initial_load : float or None
         Uniform prior mean of the pressure (Pa), projected onto the load space. ``None``: the
         declared ``initial_load`` (:attr:`declaration`; the seed's 200 Pa); ``0.0``: zero initial load.

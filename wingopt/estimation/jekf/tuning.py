@@ -44,12 +44,12 @@ from typing import Any
 import numpy as np
 
 from wingopt.errors import InputError
+from wingopt.estimation.core.distributions import chi2_ppf
+from wingopt.estimation.core.noise import JEKF_NOISE, noise_variance
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.estimation.declaration import with_declaration
-from wingopt.estimation.distributions import chi2_ppf
 from wingopt.estimation.jekf.filter import JointEKF
 from wingopt.estimation.jekf.settings import JEKFSettings
-from wingopt.estimation.noise import JEKF_NOISE, noise_variance
-from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements.series import Measurements
 from wingopt.membrane.model import MembraneModel
 

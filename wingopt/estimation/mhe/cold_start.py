@@ -27,7 +27,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from wingopt.errors import SolverError
-from wingopt.estimation.load_space import LoadSpace
+from wingopt.estimation.core.load_space import LoadSpace
 from wingopt.estimation.mhe.model import MHEModel
 from wingopt.estimation.mhe.solvers import WindowSolution, WindowSolver
 from wingopt.estimation.mhe.window import WindowProblem

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wingopt.estimation.distributions import chi2_isf, chi2_median
+from wingopt.estimation.core.distributions import chi2_isf, chi2_median
 
 __all__ = ["SIGNIFICANCE", "SegmentProfile", "segment_profile", "leading_onset", "first_inconsistent"]
 

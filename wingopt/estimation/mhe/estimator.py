@@ -46,8 +46,9 @@ from typing import Any
 import numpy as np
 
 from wingopt.errors import InputError
+from wingopt.estimation.core.load_space import build_load_space
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.estimation.declaration import with_declaration
-from wingopt.estimation.load_space import build_load_space
 from wingopt.estimation.mhe.cold_start import initial_priors
 from wingopt.estimation.mhe.consistency import first_inconsistent
 from wingopt.estimation.mhe.information import WindowPrior
@@ -57,7 +58,6 @@ from wingopt.estimation.mhe.settings import LOAD_MODELS, SIGN_MARGIN, STATE_PRIO
 from wingopt.estimation.mhe.solvers import NumpySolver, WindowSolution, make_solver
 from wingopt.estimation.mhe.startup import StartUp
 from wingopt.estimation.mhe.window import WindowProblem
-from wingopt.estimation.result import IdentificationResult
 from wingopt.measurements.series import Measurements
 from wingopt.membrane import MembraneModel
 
@@ -129,7 +129,7 @@ class MovingHorizonEstimator:
         noise_std : float or array, optional
             Sensor noise std; default: the measurements', else the declared ``noise_std``
             (``settings.declaration``), else estimated from the data
-            (:func:`~wingopt.estimation.noise.estimate_noise_std`).
+            (:func:`~wingopt.estimation.core.noise.estimate_noise_std`).
         initial_load : float, optional
             Sign prior (Pa); default: the declared ``initial_load``.
         initial_deflection : float, optional

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
-from wingopt.estimation.load_space import LoadSpace
+from wingopt.estimation.core.load_space import LoadSpace
 from wingopt.estimation.mhe.load_model import RandomWalk, l2_metric
 from wingopt.estimation.mhe.model import MHEModel
 from wingopt.estimation.mhe.settings import MHESettings

@@ -3,7 +3,7 @@
 Lambda (the weight of the load's roughness) is chosen on the first window from the data only: a
 path of solves over a grid relative to the problem's natural scale (:func:`natural_scale`),
 continued outwards from a probe and refined once inside the chosen bracket; the rule
-(:func:`~wingopt.estimation.regularization.choose_lambda`) picks a point of it. Used by
+(:func:`~wingopt.estimation.core.regularization.choose_lambda`) picks a point of it. Used by
 :class:`~wingopt.estimation.mhe.startup.StartUp`.
 """
 
@@ -15,9 +15,9 @@ from collections.abc import Callable
 import numpy as np
 import scipy.linalg as sla
 
+from wingopt.estimation.core.regularization import LambdaPoint, choose_lambda
 from wingopt.estimation.mhe.solvers import WindowSolution, WindowSolver
 from wingopt.estimation.mhe.window import WindowProblem
-from wingopt.estimation.regularization import LambdaPoint, choose_lambda
 
 __all__ = ["natural_scale", "path_point", "lambda_path"]
 
@@ -85,7 +85,7 @@ def lambda_path(
     grid : list of float
         Sorted relative lambdas.
     rule : str
-        The rule of :func:`~wingopt.estimation.regularization.choose_lambda`.
+        The rule of :func:`~wingopt.estimation.core.regularization.choose_lambda`.
 
     Returns
     -------

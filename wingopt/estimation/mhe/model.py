@@ -36,8 +36,8 @@ import scipy.sparse.linalg as spla
 
 from wingopt.dynamics.reduction import static_residual
 from wingopt.errors import InputError
+from wingopt.estimation.core.load_space import LoadSpace
 from wingopt.estimation.declaration import declaration_of
-from wingopt.estimation.load_space import LoadSpace
 from wingopt.membrane import MembraneModel
 
 __all__ = ["MHEModel", "WindowBasis", "flush_subnormal"]

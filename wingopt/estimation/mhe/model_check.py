@@ -17,7 +17,7 @@ import dataclasses
 import numpy as np
 
 from wingopt.estimation.core.adequacy import assess
-from wingopt.estimation.result import IdentificationResult
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.measurements.series import Measurements
 from wingopt.membrane import MembraneModel
 

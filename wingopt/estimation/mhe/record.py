@@ -1,7 +1,7 @@
 """The record a moving-horizon run works on: checked, uniformly sampled, weighted.
 
 Missing samples (NaN) get weight 0 and are never invented; the noise level is the caller's, the
-measurements', the problem's, or estimated from the data (:func:`~wingopt.estimation.noise.resolve_noise_std`).
+measurements', the problem's, or estimated from the data (:func:`~wingopt.estimation.core.noise.resolve_noise_std`).
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.noise import resolve_noise_std
+from wingopt.estimation.core.noise import resolve_noise_std
 from wingopt.measurements.series import Measurements
 
 __all__ = ["Record", "weighted_record"]

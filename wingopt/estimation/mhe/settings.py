@@ -9,11 +9,11 @@ from typing import Any
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.lambda_rules import resolve as resolve_rule
-from wingopt.estimation.load_space import LoadSpaceKind
+from wingopt.estimation.core.lambda_rules import resolve as resolve_rule
+from wingopt.estimation.core.load_space import LoadSpaceKind
+from wingopt.estimation.core.regularization import LambdaRule
 from wingopt.estimation.mhe.solvers import WINDOW_SOLVERS
 from wingopt.estimation.options import option
-from wingopt.estimation.regularization import LambdaRule
 from wingopt.optim.registry import solver_names
 from wingopt.problem.membrane import IdentificationSettings
 
@@ -88,7 +88,7 @@ class MHESettings:
         Membrane modes kept (``None``: all). 40 keeps the steady sensor outputs of L1–L3 within
         0.3 %; the estimates with 30, 40, 60 and 100 modes agree to 3 digits (measured).
     load_space : {"fixed", "free"}
-        Load basis (:mod:`wingopt.estimation.load_space`).
+        Load basis (:mod:`wingopt.estimation.core.load_space`).
     backend : {"numpy", "cvxpy", "ipopt"}
         Window solver (:mod:`wingopt.estimation.mhe.solvers`).
     qp_solver : {"clarabel", "osqp", "daqp"}

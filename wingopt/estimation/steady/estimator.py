@@ -23,8 +23,8 @@ from wingopt.errors import InputError
 from wingopt.estimation.core.load_prior import PriorScales, load_priors, prior_kinds
 from wingopt.estimation.core.record_problem import ParameterPrior
 from wingopt.estimation.core.record_settings import RecordSettings
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.estimation.declaration import with_declaration
-from wingopt.estimation.result import IdentificationResult
 from wingopt.estimation.steady.buffeting_fit import UNIDENTIFIED, mean_prestrain
 from wingopt.estimation.steady.problem import SteadyProblem, steady_data
 from wingopt.estimation.steady.solutions import (

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from wingopt.errors import InputError
-from wingopt.estimation.distributions import gamma_ppf
+from wingopt.estimation.core.distributions import gamma_ppf
 from wingopt.measurements.acquisition import Acquisition
 
 __all__ = ["SpectralData", "spectral_data", "with_acquisition", "Screen", "screen", "MAX_DROPPED"]

@@ -8,7 +8,7 @@ Berger or FvK membrane: an extended Kalman filter on the forward-model layer's o
 and :mod:`~.batch_check` (the batch fit's frame check in the band)).
 """
 
-from wingopt.estimation.result import Estimate
+from wingopt.estimation.core.result import Estimate
 from wingopt.estimation.streaming.estimator import StreamingEstimator
 from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator, NonlinearStreamSettings
 from wingopt.estimation.streaming.types import StreamSettings

@@ -33,7 +33,7 @@ import dataclasses
 import logging
 import math
 
-from wingopt.estimation.result import Estimate, IdentificationResult
+from wingopt.estimation.core.result import Estimate, IdentificationResult
 
 __all__ = ["BatchCheck", "AGREE_BANDS", "MAX_CHECK_SAMPLES"]
 

@@ -49,14 +49,14 @@ import numpy as np
 from scipy.linalg import lapack
 
 from wingopt.errors import InputError
+from wingopt.estimation.core.distributions import chi2_isf
+from wingopt.estimation.core.noise import resolve_noise_std
+from wingopt.estimation.core.result import Estimate
 from wingopt.estimation.declaration import with_declaration
-from wingopt.estimation.distributions import chi2_isf
 from wingopt.estimation.mhe import MovingHorizonEstimator
 from wingopt.estimation.mhe.cold_start import smooth_load_shapes
 from wingopt.estimation.mhe.consistency import SIGNIFICANCE
 from wingopt.estimation.mhe.model import MHEModel
-from wingopt.estimation.noise import resolve_noise_std
-from wingopt.estimation.result import Estimate
 from wingopt.estimation.streaming.rows import LinearRows, RtiNormalEquations
 from wingopt.estimation.streaming.types import SampleClock, StreamSettings
 from wingopt.measurements.series import Measurements

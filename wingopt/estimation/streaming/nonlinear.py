@@ -63,15 +63,15 @@ import numpy as np
 from scipy.linalg import lapack
 
 from wingopt.errors import InputError
+from wingopt.estimation.core.distributions import chi2_isf
 from wingopt.estimation.core.load_model import LoadShapes
 from wingopt.estimation.core.model_form import prestrain_std_with_model_form
+from wingopt.estimation.core.noise import MHE_NOISE, resolve_noise_std
 from wingopt.estimation.core.record_problem import PARAMETERS, ParameterPrior
+from wingopt.estimation.core.result import Estimate
 from wingopt.estimation.core.start import initial_state_prior
 from wingopt.estimation.declaration import with_declaration
-from wingopt.estimation.distributions import chi2_isf
 from wingopt.estimation.mhe.consistency import SIGNIFICANCE
-from wingopt.estimation.noise import MHE_NOISE, resolve_noise_std
-from wingopt.estimation.result import Estimate
 from wingopt.estimation.streaming.nonlinear_start import TOLERANCE, batch_start
 from wingopt.estimation.streaming.recovery import Recovery, healthy
 from wingopt.estimation.streaming.running_noise import RunningNoise

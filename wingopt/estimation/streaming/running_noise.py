@@ -1,7 +1,7 @@
 """The sensor noise level refined as samples arrive, in bounded memory.
 
 The batch reads the noise off the second differences of the record's last 60 %
-(:data:`~wingopt.estimation.noise.MHE_NOISE`); a stream has only its first samples at the start-up
+(:data:`~wingopt.estimation.core.noise.MHE_NOISE`); a stream has only its first samples at the start-up
 (300 at 1 kHz: a 5–10 % estimate, measured -9 % on two sensors of the L1 protocol, which shows as
 a chi-square per datum of 1.25). :class:`RunningNoise` continues the same statistic over every
 later sample: the sum of squared second differences and their count per sensor (white noise of std

@@ -26,7 +26,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from wingopt.estimation.result import Estimate, IdentificationResult
+from wingopt.estimation.core.result import Estimate, IdentificationResult
 from wingopt.estimation.steady.estimator import is_steady
 from wingopt.estimation.streaming.batch_check import MAX_CHECK_SAMPLES, BatchCheck
 from wingopt.measurements import Measurements

@@ -1,7 +1,7 @@
 """The stream's verdict on its whole record: a filter that went on from a fit that misfits, or whose
 windows misfit through much of the record, is flagged to its end, not only while a window misfits.
 
-The per-sample flag (:class:`~wingopt.estimation.result.Estimate` ``adequate``) tests the latest
+The per-sample flag (:class:`~wingopt.estimation.core.result.Estimate` ``adequate``) tests the latest
 window only. A filter with a constant load carries everything it saw in its mean: a gust it could
 not follow, or a start-up or reset whose batch fit did not fit its samples, biases the answer after
 the windows fit again, with a narrow band (fuzz record #21, FvK truth: a sharp leading-edge load,

@@ -44,9 +44,9 @@ from wingopt.estimation.core.prior_check import conflict_test, load_prior_check
 from wingopt.estimation.core.record_fit import Fit
 from wingopt.estimation.core.record_problem import RecordProblem
 from wingopt.estimation.core.record_settings import RecordSettings
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.estimation.core.start import scan, short_start
 from wingopt.estimation.declaration import with_declaration
-from wingopt.estimation.result import IdentificationResult
 from wingopt.estimation.steady.wiring import attach as attach_wiring
 from wingopt.estimation.transient.fit_result import (
     cut_short,

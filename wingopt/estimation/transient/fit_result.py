@@ -1,4 +1,4 @@
-"""A transient record fit as an :class:`~wingopt.estimation.result.IdentificationResult`: the lift
+"""A transient record fit as an :class:`~wingopt.estimation.core.result.IdentificationResult`: the lift
 and its band, the parameters, the warnings, and the band's widenings when a fit stopped short (a
 stall, the work budget) or the record holds little on the tension."""
 
@@ -11,7 +11,7 @@ import numpy as np
 from wingopt.estimation.core.model_form import PRESTRAIN_MODEL_FORM_REL, prestrain_std_with_model_form
 from wingopt.estimation.core.record_fit import Fit
 from wingopt.estimation.core.record_problem import PARAMETERS, RecordProblem
-from wingopt.estimation.result import IdentificationResult
+from wingopt.estimation.core.result import IdentificationResult
 from wingopt.estimation.transient.lift_sensitivity import lift_jacobian
 from wingopt.estimation.transient.stopping import EarlyStop
 from wingopt.estimation.transient.tension_profile import tension_profile

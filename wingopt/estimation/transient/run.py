@@ -15,11 +15,11 @@ import numpy as np
 from wingopt.errors import InputError
 from wingopt.estimation.core.load_model import LoadShapes
 from wingopt.estimation.core.load_prior import PriorScales, load_priors, prior_kinds
+from wingopt.estimation.core.noise import resolve_noise_std
 from wingopt.estimation.core.record_fit import Budget, Fit, levenberg_marquardt
 from wingopt.estimation.core.record_problem import ParameterPrior, RecordProblem
 from wingopt.estimation.core.record_settings import RecordSettings
 from wingopt.estimation.core.start import initial_state_prior, modal_model
-from wingopt.estimation.noise import resolve_noise_std
 from wingopt.estimation.transient.initial_shape import declared_start
 from wingopt.estimation.transient.stopping import EarlyStop, arrived
 from wingopt.measurements.series import Measurements

@@ -1,4 +1,4 @@
-"""Choosing the MHE's Tikhonov weight lambda from the data only (the noise level: :mod:`wingopt.estimation.noise`).
+"""Choosing the MHE's Tikhonov weight lambda from the data only (the noise level: :mod:`wingopt.estimation.core.noise`).
 
 The estimator solves its first window for a geometric grid of lambdas (warm-started one from
 the next) and records, for each, the data misfit ``chi2(lambda) = sum w r^2`` and the effective

@@ -24,7 +24,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from wingopt.errors import InputError
-from wingopt.estimation.noise import MHE_NOISE, estimate_noise_std
+from wingopt.estimation.core.noise import MHE_NOISE, estimate_noise_std
 from wingopt.measurements.clock import IrregularSampling, jitter_note, on_clock
 
 __all__ = [
