@@ -247,10 +247,15 @@ def buffeted_all(
                 level = None if best is None else best + ABANDON
                 theta, fit, more, ok, gave_up = fit_buffeting(bp, theta, max_iter, 1, TOL, level)
                 bf = result(bp, theta, fit, its + more, ok, gave_up)
-                if not gave_up:
-                    best = bf.objective if best is None else min(best, bf.objective)
-                out[i] = (_from_fit(sol, bf), None)
-                continue
+                # the static fits keep the stated side; a spectral fit that crossed to the other is
+                # no answer (fuzz #384: -0.118 N for +1.645 N, "adequate", not converged)
+                crossed = np.sign(bf.lift) * np.sign(sol.lift) < 0
+                if not crossed:
+                    if not gave_up:
+                        best = bf.objective if best is None else min(best, bf.objective)
+                    out[i] = (_from_fit(sol, bf), None)
+                    continue
+                exc = f"it ended on the other side of the stated load, lift {bf.lift:.3g} N"
             except _FAILURES as err:
                 exc = err
         log.info("buffeting fit from the %s solution failed: %s", sol.label, exc)
