@@ -4,6 +4,8 @@ and its band covers the truth; a load inside the prior is left alone; a fit cut 
 iteration cap says so. Truth: the FvK membrane on 33x17 (the estimator's mesh is 25x13), 0.5 s of
 the seed's protocol, 1 % noise."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -102,7 +104,7 @@ def test_the_evidence_tells_whether_the_pressure_reaches_the_frame(problem_model
 
 def test_a_budget_that_ends_the_check_widens_the_band_and_compares_only_finished_fits(problem_model):
     """A work budget (``max_total_iter``) that ends the prior check mid-ladder: the x10 fit is cut after
-    its first iteration. Before, its evidence at that unfinished point was compared, lost, and the
+    part-way. Before, its evidence at that unfinished point was compared, lost, and the
     check 'kept' x3 as the data's choice with x3's band (L3 on 49x25 truth, budget 40: 0.627 ± 0.024 N
     against 0.794 N). Now the ladder stops there, keeps the best finished fit, takes the scales not
     fitted from the last fit's Gauss-Newton model into the band, and the run is not converged."""
@@ -111,7 +113,9 @@ def test_a_budget_that_ends_the_check_widens_the_band_and_compares_only_finished
     settings = RecordSettings(membrane_model="fvk", frame="off", max_total_iter=65)
     res = identify_record(model, case.measurements, settings)
     lp = res.info["load_prior"]
-    assert lp["cut"].startswith("the work budget ended the check (x10 stopped after 1 iterations)")
+    # the x10 fit is cut part-way (1 iteration before the transient fits stopped once their lift had
+    # arrived, which leaves more of the budget to it: 6 now); the ladder stops there either way
+    assert re.match(r"the work budget ended the check \(x10 stopped after \d+ iterations\)", lp["cut"]), lp["cut"]
     assert lp["kept"] == "3" and "log_evidence" not in lp["scales"]["10"]  # only finished fits compete
     assert {"linearized_lift", "linearized_std"} <= set(lp["scales"]["30"])
     # the linearised scales widen it
