@@ -35,7 +35,7 @@ from wingopt.estimation.core.model_form import prestrain_std_with_model_form
 from wingopt.estimation.core.noise import resolve_noise_std
 from wingopt.estimation.core.record_fit import levenberg_marquardt
 from wingopt.estimation.core.record_problem import PARAMETERS, ParameterPrior, RecordProblem
-from wingopt.estimation.core.start import initial_state_prior, modal_model
+from wingopt.estimation.core.start import initial_state_prior, modal_model, record_filter
 from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.transient.estimator import RecordSettings
 from wingopt.measurements import Measurements
@@ -247,7 +247,7 @@ def _calibration_problem(
     prior = ParameterPrior.from_problem(problem, PARAMETERS, s.prestrain_rel, s.damping_rel, declaration=declared)
     x_mean, x_std, known = initial_state_prior(bm, problem, meas.values, declared.initial_deflection)
     shapes, ms = LoadShapes.none(model), min(s.state_modes if modes is None else modes, bm.m)
-    daq = None if problem.acquisition is None else problem.acquisition.sample_filter(1.0 / dt)
+    daq = record_filter(problem, dt)
     rp = RecordProblem(bm, shapes, meas.t, meas.values, sigma, prior, x_mean, x_std, state_modes=ms, daq=daq)
     return rp, known
 

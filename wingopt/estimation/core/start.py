@@ -10,12 +10,19 @@ import numpy as np
 from wingopt.estimation.core.record_fit import levenberg_marquardt
 from wingopt.estimation.core.record_problem import RecordProblem
 from wingopt.estimation.declaration import declaration_of
+from wingopt.measurements.acquisition import SampleFilter
 from wingopt.membrane import bubble
 from wingopt.membrane.forward import ModalMembrane, modal_model
 
-__all__ = ["initial_state_prior", "modal_model", "scan", "short_start", "SCAN_S", "SHORT_START_ITER"]
+__all__ = ["initial_state_prior", "modal_model", "record_filter", "scan", "short_start", "SCAN_S", "SHORT_START_ITER"]
 
 log = logging.getLogger(__name__)
+
+
+def record_filter(problem, dt: float) -> SampleFilter | None:
+    """The problem's declared DAQ filter as it acts on a record sampled every ``dt`` s, for the
+    record fits' predictions (``None``: none declared, or one the samples need not model)."""
+    return None if problem.acquisition is None else problem.acquisition.sample_filter(1.0 / dt)
 
 
 def initial_state_prior(

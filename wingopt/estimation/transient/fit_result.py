@@ -50,7 +50,8 @@ def fit_result(
     c, amp = rp.load_history(fit.theta)
     Q, _ = rp.predicted(fit.theta)
     loads = amp[:, None] * shapes.coefficients(c)[None]
-    lift, lift_std = _lift_band(rp, c, amp, cov, spread)
+    G = lift_jacobian(rp, c, amp)
+    lift, lift_std = _lift_band(rp, c, amp, G, cov, spread)
     est, std = _parameters(rp, fit, cov)
     fvk = bm.physics == "fvk"
     name = f"FvK cubic, {bm.cubic_modes} modes" if fvk else "Berger"
@@ -78,7 +79,7 @@ def fit_result(
         "dropped": [],
         "missing_samples": int(np.count_nonzero(~rp.valid.all(axis=1))),
     }
-    info["lift_band_parts"] = band_parts(rp, fit, c, amp, ad.inflation, spread)
+    info["lift_band_parts"] = band_parts(rp, fit, G[-1], ad.inflation, spread)
     if fit.arrived is not None:
         info["converged_by"] = fit.arrived  # the lift's test (:func:`.stopping.arrived`), not the decrement's
     return IdentificationResult(
@@ -95,23 +96,24 @@ def fit_result(
     )
 
 
-def _lift_band(rp: RecordProblem, c, amp, cov, spread) -> tuple[np.ndarray, np.ndarray]:
-    """The lift history and its band: linearised in the unknowns, the prior's ``spread`` added."""
+def _lift_band(rp: RecordProblem, c, amp, G, cov, spread) -> tuple[np.ndarray, np.ndarray]:
+    """The lift history and its band: linearised in the unknowns (``G``: the lift's sensitivity,
+    :func:`.lift_sensitivity.lift_jacobian`), the prior's ``spread`` added."""
     lift = amp * float(rp.shapes.lift_row @ c)
-    G = lift_jacobian(rp, c, amp)
     lift_std = np.sqrt(np.einsum("ki,ij,kj->k", G, cov, G) + (0.0 if spread is None else spread**2))
     return lift, lift_std
 
 
-def band_parts(rp: RecordProblem, fit: Fit, c, amp, inflation: float, spread) -> dict:
+def band_parts(rp: RecordProblem, fit: Fit, lift_row: np.ndarray, inflation: float, spread) -> dict:
     """The reported lift's band before its widenings, in parts (N): ``noise``, what the data's noise
     puts in the posterior (``G P^-1 J_d^T J_d P^-1 G^T``: the scatter of the answer over noise
     draws), ``prior``, what the priors put in (``G P^-1 R^T R P^-1 G^T``: the load shapes and
     parameters the data leave to their prior; for one load, a bias common to all draws), their
     ``misfit_inflation`` and the load prior's ``spread``. The band is
     ``sqrt(inflation^2 (noise^2 + prior^2) + spread^2)``; a stall's, the budget's, the tension
-    profile's and the frame prior's widenings come after (their own ``info`` entries)."""
-    g = lift_jacobian(rp, c, amp)[-1] @ fit.covariance
+    profile's and the frame prior's widenings come after (their own ``info`` entries). ``lift_row``:
+    the final lift's sensitivity to the unknowns."""
+    g = lift_row @ fit.covariance
     R = rp.prior_matrix
     noise, prior = fit.data_jacobian @ g, R @ g
     return {

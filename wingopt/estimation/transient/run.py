@@ -19,7 +19,7 @@ from wingopt.estimation.core.noise import resolve_noise_std
 from wingopt.estimation.core.record_fit import Budget, Fit, levenberg_marquardt
 from wingopt.estimation.core.record_problem import ParameterPrior, RecordProblem
 from wingopt.estimation.core.record_settings import RecordSettings
-from wingopt.estimation.core.start import initial_state_prior, modal_model
+from wingopt.estimation.core.start import initial_state_prior, modal_model, record_filter
 from wingopt.estimation.transient.initial_shape import declared_start
 from wingopt.estimation.transient.stopping import EarlyStop, arrived
 from wingopt.measurements.series import Measurements
@@ -70,7 +70,7 @@ class RecordRun:
         self.bm = modal_model(
             model, s.membrane_model, min(s.modes, model.n), dt, substeps, s.stretch_gain, s.cubic_modes
         )
-        self.daq = None if acquisition is None else acquisition.sample_filter(1.0 / dt)
+        self.daq = record_filter(model.problem, dt)
         self.shapes, self.weigh_frame = _load_prior(model, self.p0, s)
         self.prior = ParameterPrior.from_problem(model.problem, s.free, s.prestrain_rel, s.damping_rel, ident)
         self._initial_state(ident.initial_deflection)

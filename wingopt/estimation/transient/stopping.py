@@ -172,11 +172,11 @@ def arrived(rp: RecordProblem) -> Rule:
             return None
         c, amp = rp.load_history(it.theta)
         lift_row = lift_jacobian(rp, c, amp)[-1]
-        try:
-            step = -np.linalg.solve(it.precision, it.gradient)
-            variance = float(lift_row @ np.linalg.solve(it.precision, lift_row))
+        try:  # one solve: the Gauss-Newton step and the lift's posterior direction
+            step, direction = np.linalg.solve(it.precision, np.column_stack([-it.gradient, lift_row])).T
         except np.linalg.LinAlgError:
             return None
+        variance = float(lift_row @ direction)
         if not variance > 0:
             return None  # a record whose lift the unknowns do not move: the solver's own test decides
         move = abs(float(lift_row @ step)) / np.sqrt(variance)
