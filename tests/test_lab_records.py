@@ -244,6 +244,27 @@ def test_a_filter_failure_is_recovered_and_the_stream_runs_to_its_end(fvk_short_
     assert "reset" in info["recoveries"][0] and any("failed numerically" in w for w in info["warnings"])
 
 
+def test_a_failure_soon_after_a_reset_holds_the_last_healthy_answer(fvk_short_record):
+    """A record the model cannot follow failed again right after each reset (fuzz #437: an L2 gust
+    through an undeclared filter, a reset at every sample, 17 s each, and the last failure left a
+    diverged state: no lift at the end). A second failure before the ring has refilled goes back to
+    the last healthy state and holds it, flagged, to the end of the input."""
+    est, meas = _small_stream(fvk_short_record)
+    n = meas.count
+    k1 = 2 * n // 3
+    for k in range(n):
+        if k in (k1, k1 + 3):
+            est.x[: est.m] = 1e9
+        e = est.push(meas.t[k], meas.values[k])
+        if k == k1 + 2:
+            healthy_lift = e.lift
+    info = est.info()
+    assert info["recovery_count"] == 2 and info["recoveries"][1]["reset"].startswith("held: failed again 3 samples")
+    assert est._recovery.hold and np.isfinite(e.lift) and not e.adequate  # held, flagged
+    assert e.lift == pytest.approx(healthy_lift, rel=1e-12)  # the answer before the failure, not the prior's
+    assert "ended held at its last answer" in info["warnings"][0]
+
+
 def test_a_provisional_failure_holds_the_prior_until_the_start_up(fvk_short_record):
     est, meas = _small_stream(fvk_short_record)
     for k in range(25):

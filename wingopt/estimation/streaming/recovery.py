@@ -15,8 +15,11 @@ standard deviations, is a failure. It is recovered, with a warning, as follows:
   (the samples are buffered as before) until the start-up's batch fit, which starts from the
   prior and the batch's amplitude scan;
 * while tracking: the filter is reset from the batch fit of the latest samples (the kept ring,
-  the start-up's length), as at the start-up; if that fails too, the filter holds its last
-  answer, flagged, and retries when the ring has filled again.
+  the start-up's length), as at the start-up; if that fails too, or the filter fails again before
+  the ring has filled since its last reset (a record the model cannot follow: measured on an L2
+  gust through an undeclared analog filter, a reset at every sample, 17 s each, and the last
+  failure left the state diverged: no lift at the end), the filter goes back to its last healthy
+  state and holds that answer, flagged, and retries when the ring has filled again.
 
 Every failure is counted in ``info()["recoveries"]`` and said once in ``info()["warnings"]``; the
 stream runs to the end of its input.
@@ -59,6 +62,8 @@ class Recovery:
         self.hold = False
         self.events: list[dict] = []
         self._since_hold = 0
+        self._since_reset: int | None = None  # samples since the last reset (None: none yet)
+        self._good: tuple | None = None  # the last healthy (x, G, Sigma): what a hold keeps
 
     @property
     def ring(self) -> np.ndarray:
@@ -77,6 +82,8 @@ class Recovery:
         self._kept += 1
         if self.hold:
             self._since_hold += 1
+        if self._since_reset is not None:
+            self._since_reset += 1
 
     def due(self) -> bool:
         """A held tracking filter's next reset: the ring has filled again since the hold."""
@@ -98,6 +105,8 @@ class Recovery:
             ok, why = False, str(exc)
         if not ok:
             self.fail(est, why)
+        elif est.phase == "tracking":
+            self._good = (est.x.copy(), est.G.copy(), est.Sigma.copy())
 
     def fail(self, est, why: str) -> None:
         """A failure: back to the prior before the start-up, a reset from the batch fit while tracking."""
@@ -116,8 +125,13 @@ class Recovery:
         """The filter from the batch fit of the ring (as the start-up), or held when that fails too."""
         Y = self.ring
         self.hold, self._since_hold = True, 0
-        if len(self.events) > MAX_RESETS or Y.shape[0] < est.settings.min_samples:
+        again = self._since_reset is not None and self._since_reset < self._ring.shape[0]
+        if again or len(self.events) > MAX_RESETS or Y.shape[0] < est.settings.min_samples:
+            if again:
+                self.events[-1]["reset"] = f"held: failed again {self._since_reset} samples after the last reset"
+            self._restore(est)
             return
+        self._since_reset = 0
         est.x, est.G = est._prior_state(Y)
         est.Sigma = np.eye(est.d)
         try:
@@ -125,14 +139,25 @@ class Recovery:
                 out = batch_start(est, Y, est.sigma)
         except Exception as exc:  # noqa: BLE001 - a failed reset holds the filter; the stream goes on
             self.events[-1]["reset"] = f"failed: {type(exc).__name__}: {exc}"
+            self._restore(est)
             return
         if not healthy(est):
             self.events[-1]["reset"] = "failed: the batch fit's state is not finite"
+            self._restore(est)
             return
         self.hold = False
+        self._good = (est.x.copy(), est.G.copy(), est.Sigma.copy())
         self.events[-1]["reset"] = {"samples": int(Y.shape[0]), "chi2_per_datum": out["startup_chi2_per_datum"]}
         est.verdict.fitted(out["startup_chi2_per_datum"], Y.shape[0], "reset")
         log.info("[ekf stream] reset from the batch fit of the last %d samples (%s)", Y.shape[0], why)
+
+    def _restore(self, est) -> None:
+        """Back to the last healthy state (held, flagged): a diverged state has no answer to report."""
+        if self._good is not None:
+            est.x, est.G, est.Sigma = (a.copy() for a in self._good)
+        elif not healthy(est):  # no healthy tracking state yet: the prior
+            est.x, est.G = est._prior_state(self.ring)
+            est.Sigma = np.eye(est.d)
 
     def released(self) -> None:
         """The start-up's batch fit replaced the held provisional filter."""
