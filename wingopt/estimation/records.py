@@ -69,4 +69,4 @@ def identify_record(
 
 def answered_by_steady_fit(result: IdentificationResult) -> bool:
     """Whether the steady fit answered (a batch result, or a stream's steady refit)."""
-    return result.info.get("record") == "steady"
+    return result.diagnostics.record == "steady"

@@ -77,7 +77,7 @@ def _mhe(spec, model, meas, options, settings, truth, frames) -> IdentificationR
     p0 = options.initial_load
     result = mhe_identify(model, meas, settings_for(spec, options, settings, problem=model.problem), initial_load=p0)
     result = check_mhe_result(model, meas, result)
-    if result.info.get("model_adequate") is False and options.model_form is not False:
+    if result.diagnostics.model_adequate is False and options.model_form is not False:
         result = model_form_band(model, meas, result, p0)
     return result
 

@@ -152,14 +152,9 @@ class IdentifyRun(RunExports):
         out.update(self.errors())
         out["estimator"] = {k: v for k, v in res.info.items() if k != "iterations_per_window"}
         # issue 11: adequacy flag, warnings, identified parameters and left-out data at top level
-        out["model"] = res.info.get("model", "linear")
-        out["model_adequate"] = res.info.get("model_adequate")
-        out["dropped"] = res.info.get("dropped", [])
-        if "adequacy" in res.info:
-            out["chi2_per_datum"] = res.info["adequacy"]["chi2_per_datum"]
-        if "parameters" in res.info:
-            out["parameters"] = res.info["parameters"]
-            out["parameters_std"] = res.info["parameters_std"]
+        diagnostics = res.diagnostics
+        out.update(diagnostics.summary())
+        if diagnostics.parameters is not None:
             if self.case is not None and getattr(self.case, "parameters", None):
                 out["true_parameters"] = self.case.parameters
         return out
@@ -336,7 +331,7 @@ def _estimate(record: SourceRecord, spec, opts: IdentifyOptions, settings) -> Id
     result = build(spec, membrane, opts, truth=record.case, settings=settings, frames=record.frames).run(meas)
     wall = time.perf_counter() - t0
     warnings += sanity.sourced("fit check", sanity.fit_checks(membrane, meas, result, sanity.used_sigma(meas, result)))
-    own = sanity.sourced(f"{spec.model} {spec.method}", result.info.get("warnings", []))  # its adequacy
+    own = sanity.sourced(f"{spec.model} {spec.method}", list(result.diagnostics.warnings))  # its adequacy
     warnings += [w for w in own if w not in warnings]
     for w in warnings:  # each once, here: the engines return theirs, they do not print them
         log.warning("%s", w)

@@ -137,14 +137,14 @@ def _steady_summary(est, result, summary: dict) -> dict:
     live filter's last estimate beside it, and the refits' trace."""
     lift, std = result.reported_lift
     live = {k: summary.get(k) for k in ("lift_N", "lift_std_N", "chi2_per_datum", "adequate")}
-    chi2 = result.info.get("adequacy", {}).get("chi2_per_datum")
+    diagnostics = result.diagnostics
     own = [w for w in summary.get("warnings", []) if "window misfit" not in w]  # the refit explains the record
-    refit = sanity.sourced("steady refit", list(result.info.get("warnings", [])))
+    refit = sanity.sourced("steady refit", list(diagnostics.warnings))
     return {
         "lift_N": lift,
         "lift_std_N": std,
-        "chi2_per_datum": chi2,
-        "adequate": bool(result.info.get("model_adequate", True)),
+        "chi2_per_datum": diagnostics.chi2_per_datum,
+        "adequate": diagnostics.model_adequate is not False,
         "record": "steady",
         "answer": "the whole-record (batch) estimate of the stream's samples: a steady record, no release transient",
         "live_filter": live,

@@ -12,6 +12,8 @@
 * :mod:`.prior_check`, :mod:`.frame_check` — the evidence between load priors;
 * :mod:`.model_form` — the modal FvK model's prestrain model-form term;
 * :mod:`.result` — :class:`~.result.IdentificationResult`, what every estimator returns;
+* :mod:`.diagnostics` — :class:`~.diagnostics.Diagnostics`, what every estimator says of its
+  answer (warnings, adequacy, convergence, steady lift, parameters), typed;
 * :mod:`.noise` — the sensors' noise level from the data, and the one precedence rule;
 * :mod:`.sanity` — a record's and a sensor layout's sanity (refusals and warnings);
 * :mod:`.load_space` — the load bases (fixed edge, free);

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from wingopt.errors import MissingExtraError
+from wingopt.estimation.core.diagnostics import Diagnostics
 from wingopt.status import RunStatus, from_info
 
 __all__ = ["IdentificationResult", "Estimate"]
@@ -89,12 +90,19 @@ class IdentificationResult:
     load_space: Any = None
 
     @property
+    def diagnostics(self) -> Diagnostics:
+        """What the estimator says of its answer, typed (:class:`~wingopt.estimation.core.diagnostics.Diagnostics`):
+        its warnings, adequacy, convergence, steady lift and parameters, read from ``info``."""
+        return Diagnostics.of(self.info)
+
+    @property
     def reported_lift(self) -> tuple[float, float | None]:
         """The lift a summary reports and its 1-sigma: the last estimate, or for a steady record (the
-        steady estimator's, the DIC frames': ``info["steady_lift_N"]``) the steady lift, which the
+        steady estimator's, the DIC frames': ``diagnostics.steady_lift``) the steady lift, which the
         history fluctuates about."""
-        if self.info.get("steady_lift_N") is not None:
-            return float(self.info["steady_lift_N"]), float(self.info["steady_lift_std_N"])
+        steady = self.diagnostics.steady_lift
+        if steady is not None:
+            return steady
         return float(self.lift[-1]), None if self.lift_std is None else float(self.lift_std[-1])
 
     @property
