@@ -186,6 +186,22 @@ class Acquisition:
             return sig.butter(self.order, wc, analog=True)
         return sig.bessel(self.order, wc, analog=True, norm="mag")
 
+    def state_space(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """An analog filter's state space ``(A, B, C, D)`` (``B``, ``C`` as vectors), normalised as
+        :meth:`response`: what a filter that goes one sample at a time carries
+        (:mod:`wingopt.estimation.streaming.output_filter`)."""
+        if self.kind not in _ANALOG:
+            raise InputError(f"acquisition kind = {self.kind!r}: expected an analog filter (butterworth, bessel)")
+        # designed at a unit cutoff and scaled in time (H(s / wc): A, B times wc): the companion form of
+        # the polynomial in s itself would hold wc^order
+        if self.kind == "butterworth":
+            b, a = sig.butter(self.order, 1.0, analog=True)
+        else:
+            b, a = sig.bessel(self.order, 1.0, analog=True, norm="mag")
+        A, B, C, D = sig.tf2ss(b, a)
+        wc = 2 * np.pi * self.cutoff_hz
+        return wc * A, wc * B[:, 0], C[0], float(D[0, 0])
+
     def sample_filter(self, fs: float) -> SampleFilter | None:
         """What the filter does to a record sampled at ``fs`` (Hz), for a time-domain fit
         (:class:`SampleFilter`); ``None`` for point sampling and for a digital filter (module

@@ -20,7 +20,11 @@ the Berger map and its exact tangent (:class:`~wingopt.membrane.modal.sample.Mod
 prior stds per sqrt(s): the estimate forgets slowly, a drifting load can be followed), and the
 measurement update linearises the quadratic sensors ``s_i = q^T C_i q`` at the prediction
 (``H G``: ``p x d``). This is one Gauss–Newton step per sample on the batch problem with the past
-summarised in a Gaussian arrival cost (the filter's mean and ``Sigma``).
+summarised in a Gaussian arrival cost (the filter's mean and ``Sigma``). A declared analog
+anti-aliasing filter (``problem.acquisition``, Butterworth or Bessel) is modelled: its states per
+sensor go along with the state and their sensitivity along with ``G``, the record is the filter's
+output (:mod:`.output_filter`; ``info()["acquisition"]`` says what was modelled); a digital one is
+point sampling of its passband, as none.
 
 Phases (``Estimate.phase``):
 
@@ -72,7 +76,9 @@ from wingopt.estimation.core.result import Estimate
 from wingopt.estimation.core.start import initial_state_prior
 from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.mhe.consistency import SIGNIFICANCE
+from wingopt.estimation.streaming.innovation import innovation
 from wingopt.estimation.streaming.nonlinear_start import TOLERANCE, batch_start
+from wingopt.estimation.streaming.output_filter import SensorInput, output_filter, sensor_input
 from wingopt.estimation.streaming.recovery import Recovery, healthy
 from wingopt.estimation.streaming.running_noise import RunningNoise
 from wingopt.estimation.streaming.types import NonlinearStreamSettings, SampleClock
@@ -119,6 +125,8 @@ class NonlinearStreamingEstimator:
         self.prior = ParameterPrior.from_problem(problem, s.free, declaration=ident)
         self.shapes = LoadShapes.build(model, min(s.shapes, model.n), self.initial_load, s.kappa, s.prior_power)
         self._build(ident.dt or 1e-3)  # rebuilt at the first estimate if the stream's period differs
+        if self._daq_warning:
+            log.warning("[ekf stream] %s", self._daq_warning)
         self.count = 0
         self.phase = "waiting"
         self._clock = SampleClock(self.names)
@@ -151,6 +159,8 @@ class NonlinearStreamingEstimator:
         self.sampler = ModalSample(bm, self._forces, self.lc, self.pc, substeps=ts)
         self._par_ms = np.array([self.prior.mean_std(name) for name in self.prior.free]).reshape(-1, 2)
         self._lift = self.shapes.lift_row * self.shapes.prior_std  # lift per scaled load unknown
+        # the DAQ's analog filter, its states in the filter (:mod:`.output_filter`); None: point samples
+        self.daq, self._acquisition, self._daq_warning = output_filter(model.problem.acquisition, dt)
 
     def _prior_state(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Prior mean of the joint state (scaled) and its sensitivity ``G`` to the unknowns (prior ``N(0, I)``)."""
@@ -181,6 +191,12 @@ class NonlinearStreamingEstimator:
             seeds[PARAMETERS.index(name), i] = std * (vals[name] if name == "damping" else 1.0)
         return vals["prestrain_x"], vals["prestrain_y"], vals["damping"], seeds
 
+    def _input(self) -> SensorInput:
+        """The DAQ filter's input at the current state: the sensors' signals, their rates, their sensitivities."""
+        m, x, D, G = self.m, self.x, self._D, self.G
+        dQ, dV = (G[:m] * D[:m, None]).T, (G[m:] * D[m:, None]).T
+        return sensor_input(self.bm.sensor_matrices, D[:m] * x[:m], D[m:] * x[m : 2 * m], dQ, dV)
+
     @property
     def dt(self) -> float | None:
         """The sample period (s), fixed by the first two samples; ``None`` before."""
@@ -208,7 +224,7 @@ class NonlinearStreamingEstimator:
         else:
             if self._running is not None:  # the noise level refined by every sample
                 self._running.push(y)
-                self.sigma = self._running.sigma
+                self.sigma = self._running.sigma / self._noise_scale
             self._recovery.step(self, y)  # predict and update, a numerical failure recovered
         return self._estimate(k, t, phase)
 
@@ -233,19 +249,23 @@ class NonlinearStreamingEstimator:
 
     def info(self) -> dict:
         out = {"phase": self.phase, "samples": self.count, "dt_s": self.dt, "model": self._model_name}
+        out["acquisition"] = self._acquisition
         out.update(modes=self.m, load_shapes=self.shapes.count, substeps=self.bm.substeps, **self.startup)
         out.update(self._recovery.info())
         if self.phase == "tracking":
             out["verdict"] = self.verdict.as_dict()
-        if self.verdict.warnings():
-            out["warnings"] = list(out.get("warnings", [])) + self.verdict.warnings()
+        said = self.verdict.warnings() + ([self._daq_warning] if self._daq_warning else [])
+        if said:
+            out["warnings"] = list(out.get("warnings", [])) + said
         if self.phase not in ("waiting",):
             out.update(self.parameters(), noise_std=self.sigma.tolist(), noise_source=self.noise_source)
         return out
 
     # -- start-up ----------------------------------------------------------------------------------
     def _noise(self, Y: np.ndarray) -> np.ndarray:
-        sigma, self.noise_source = resolve_noise_std(Y, self.names, allow_zero=True)
+        # through an analog filter the differences see less of the noise (as the batch's estimate)
+        acq, fs = (None, None) if self.daq is None else (self.model.problem.acquisition, 1.0 / self.dt)
+        sigma, self.noise_source = resolve_noise_std(Y, self.names, allow_zero=True, acquisition=acq, fs=fs)
         scale = np.nanmax(np.abs(Y), axis=0)
         return np.maximum(sigma, 1e-6 * np.where(np.isfinite(scale) & (scale > 0), scale, 1.0))
 
@@ -257,6 +277,8 @@ class NonlinearStreamingEstimator:
         Y = np.array(self._buf)
         self.sigma = self._noise(Y) if self._sigma_given is None else self._sigma_given
         self.x, self.G = self._prior_state(Y)
+        if self.daq is not None:
+            self.daq.settle(self._input())
         self.Sigma = np.eye(self.d)
         self.repairs = 0
         self._lc_diag = (np.arange(self.lc.start, self.lc.stop),) * 2
@@ -282,7 +304,11 @@ class NonlinearStreamingEstimator:
         if self._sigma_given is None:
             self.sigma = self._noise(Y)
             tail = Y[int(Y.shape[0] * (1 - MHE_NOISE.tail)) :]
-            self._running = RunningNoise(self.sigma, np.isfinite(np.diff(tail, 2, axis=0)).sum(axis=0), Y[-2:])
+            # the running estimate takes white noise's differences (6 sigma^2); a filter's see less
+            acq = self.model.problem.acquisition
+            self._noise_scale = 1.0 if self.daq is None else math.sqrt(acq.difference_gain(2, 1.0 / self.dt) / 6.0)
+            count = np.isfinite(np.diff(tail, 2, axis=0)).sum(axis=0)
+            self._running = RunningNoise(self.sigma * self._noise_scale, count, Y[-2:])
         out = batch_start(self, Y, self.sigma)
         self.verdict.fitted(out["startup_chi2_per_datum"], Y.shape[0], "start-up")
         self._recovery.released()
@@ -309,6 +335,9 @@ class NonlinearStreamingEstimator:
         u = x[self.ls] @ self._forces
         dQ, dV = (G[:m] * D[:m, None]).T, (G[m:] * D[m:, None]).T
         q1, v1, dQ1, dV1 = self.sampler.step_tangent(q, v, u, ex, ey, d, dQ, dV, seeds)
+        if self.daq is not None:  # the DAQ's filter on the outputs' Hermite interpolant over the sample
+            C = self.bm.sensor_matrices
+            self.daq.step(sensor_input(C, q, v, dQ, dV), sensor_input(C, q1, v1, dQ1, dV1))
         x[:m], x[m : 2 * m] = q1 / D[:m], v1 / D[m:]
         np.divide(dQ1.T, D[:m, None], out=G[:m])
         np.divide(dV1.T, D[m:, None], out=G[m:])
@@ -324,35 +353,22 @@ class NonlinearStreamingEstimator:
         q = D[:m] * x[:m]
         full = ok.all()  # the usual case: no copies
         Cq = (self.bm.sensor_matrices if full else self.bm.sensor_matrices[ok]) @ q  # (p, m)
-        nu = (y if full else y[ok]) - Cq @ q
+        pred = Cq @ q
         Hg = (2.0 * Cq * D[:m]) @ self.G[:m]  # (p, d): d outputs / d unknowns
+        if self.daq is not None:  # the record is the filter's output: C w + D h, C dW + D H G
+            pred, Hg = self.daq.output(pred, Hg, None if full else ok)
+        nu = (y if full else y[ok]) - pred
         Sigma = self.Sigma
-        SH = Sigma @ Hg.T  # (d, p)
-        S = Hg @ SH
-        S[np.diag_indices_from(S)] += (self.sigma if full else self.sigma[ok]) ** 2
-        L, info = lapack.dpotrf(S, lower=1, clean=1)
-        if info != 0:  # S = H P H^T + R with R > 0: only a Sigma that rounding made indefinite gets here
-            # (a stated noise far below the signal's): its negative eigenvalues are clipped, and counted
-            lam, V = np.linalg.eigh(0.5 * (Sigma + Sigma.T))
-            Sigma[:] = (V * np.maximum(lam, 0.0)) @ V.T
-            self.repairs += 1
-            if self.repairs == 1:
-                log.warning(
-                    "[ekf stream] the filter's covariance lost its positive definiteness to rounding and was "
-                    "repaired (a stated sensor noise far below the data's?); its consistency test judges the fit"
-                )
-            SH = Sigma @ Hg.T
-            S = Hg @ SH
-            S[np.diag_indices_from(S)] += (self.sigma if full else self.sigma[ok]) ** 2
-            L, info = lapack.dpotrf(S, lower=1, clean=1)
-            if info != 0:
-                raise np.linalg.LinAlgError("nonlinear streaming: innovation covariance not positive definite")
+        r2 = (self.sigma if full else self.sigma[ok]) ** 2
+        L, SH, self.repairs = innovation(Sigma, Hg, r2, self.repairs)  # Sigma repaired if rounding broke it
         Zw, _ = lapack.dtrtrs(L, np.hstack([SH.T, nu[:, None]]), lower=1)
         Z, w = Zw[:, :-1], Zw[:, -1]  # L^-1 (H Sigma), L^-1 nu
         dth = Z.T @ w
         x[: 2 * m] += self.G @ dth
         x[self.ls] += dth[self.lc]
         x[self.ps] += dth[self.pc]
+        if self.daq is not None:
+            self.daq.correct(dth)
         Sigma -= Z.T @ Z
         Sigma += Sigma.T  # the subtraction's rounding leaves it unsymmetric, and then indefinite
         Sigma *= 0.5

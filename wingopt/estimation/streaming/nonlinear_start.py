@@ -8,10 +8,11 @@ there biases everything after. The start-up therefore solves the realistic estim
 provisional filter's load and parameters, and converts its answer into the filter's mean and
 covariance at the last buffered sample: the state is propagated from the fitted initial state
 with the exact tangent of the unknowns (``G``, ``P = G Sigma G^T``, ``Sigma`` the fit's posterior
-covariance). From then on the filter continues as the batch would with an arrival cost. When the
-fit from the provisional estimate does not fit the data (chi-square per datum above 1.15, the
-batch's tolerance) it is also started from the batch's amplitude scan and the better fit is kept;
-without a bubble prior the sign is the prior load's (the batch's rule).
+covariance), and so are a declared analog filter's states (:mod:`.output_filter`; the fit models
+the filter as the batch's does). From then on the filter continues as the batch would with an
+arrival cost. When the fit from the provisional estimate does not fit the data (chi-square per
+datum above 1.15, the batch's tolerance) it is also started from the batch's amplitude scan and
+the better fit is kept; without a bubble prior the sign is the prior load's (the batch's rule).
 """
 
 from __future__ import annotations
@@ -20,7 +21,8 @@ import numpy as np
 
 from wingopt.estimation.core.record_fit import levenberg_marquardt
 from wingopt.estimation.core.record_problem import RecordProblem
-from wingopt.estimation.core.start import scan
+from wingopt.estimation.core.start import record_filter, scan
+from wingopt.estimation.streaming.output_filter import sensor_input
 
 __all__ = ["batch_start", "TOLERANCE"]
 
@@ -43,7 +45,8 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
     D = est._D
     x_mean = np.concatenate([D[:m] * x_prior[:m], np.zeros(m)])
     t = est.dt * np.arange(Y.shape[0])
-    rp = RecordProblem(bm, est.shapes, t, Y, sigma, est.prior, x_mean, D.copy(), None, True, ms)
+    daq = record_filter(est.model.problem, est.dt)  # the declared analog filter, as the batch fit
+    rp = RecordProblem(bm, est.shapes, t, Y, sigma, est.prior, x_mean, D.copy(), None, True, ms, daq=daq)
     sl = rp.slices
     theta0 = np.zeros(rp.dim)
     theta0[sl["c"]] = est.x[est.ls]  # the provisional filter's load and parameters: a start near the optimum
@@ -75,8 +78,16 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
     q, v = D[:m] * x[:m], D[m:] * x[m : 2 * m]
     ex, ey, damping, seeds = est._params(x)
     u = x[est.ls] @ est._forces
+    C, states = bm.sensor_matrices, est.daq  # the DAQ filter's states go along (None: point samples)
+    if states is not None:
+        h0 = sensor_input(C, q, v, dQ, dV)
+        states.settle(h0)
     for _ in range(Y.shape[0] - 1):
         q, v, dQ, dV = est.fit_sampler.step_tangent(q, v, u, ex, ey, damping, dQ, dV, seeds)
+        if states is not None:
+            h1 = sensor_input(C, q, v, dQ, dV)
+            states.step(h0, h1)
+            h0 = h1
     x[:m], x[m : 2 * m] = q / D[:m], v / D[m:]
     est.x = x
     est.G = np.vstack([dQ.T / D[:m, None], dV.T / D[m:, None]])

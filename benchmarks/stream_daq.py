@@ -1,0 +1,113 @@
+"""The nonlinear stream through an analog anti-aliasing filter: point-sampled, filter undeclared, declared.
+
+The records of ``benchmarks/daq_transient.py`` (``benchmarks/fuzz_records.py``'s generator: FvK
+truth 37x19 full order, prestrains x1.1 and x0.9 of the file's, 1 % noise, 1 s at 300 Hz, a
+4th-order Butterworth at fs/3 run at 4x the record's rate and settled on the wing's first state),
+streamed by the default stream (``wingopt.workflows.stream.follow``, the FvK EKF, as the fuzz
+does). One row per record and acquisition: the final lift and band, the truth, ``(lift - truth) /
+band``, the status, the chi-square per datum (the start-up fit's, the last window's and the mean
+of the tracking windows') and the samples reached::
+
+    python benchmarks/stream_daq.py [--cases 3] [--seconds 1.0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import dataclasses
+import logging
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+import fuzz_records as fz  # noqa: E402 - the fuzz's generator, beside this file
+
+import wingopt as wo  # noqa: E402
+from wingopt.measurements.acquisition import Acquisition  # noqa: E402
+from wingopt.workflows.stream import follow  # noqa: E402
+
+CASES = [("L1", "rest", 300, 2), ("L1", "bubble", 300, 1), ("L3", "bubble", 300, 3)]
+ACQUISITIONS = ("point-sampled", "undeclared", "declared")
+
+
+def case(load: str, start: str, rate: int, seed: int, seconds: float) -> dict:
+    """A record of the stream route, handed over by the Butterworth (its truth oversampled 4x)."""
+    return {
+        "index": -1,
+        "route": "stream",
+        "load": load,
+        "prestrain_factor": [1.1, 0.9],
+        "damping": 1.0,
+        "noise_percent": 1.0,
+        "t_end": seconds,
+        "rate_hz": rate,
+        "gust": False,
+        "start": start,
+        "declared_shape": start == "bubble",
+        "daq": "butter-fs/3",
+        "rounded_stamps": False,
+        "seed": seed,
+    }
+
+
+def stream(problem, meas) -> tuple[dict, float]:
+    """The summary of ``follow`` on ``meas`` written as a CSV, and the tracking windows' mean chi-square."""
+    with tempfile.TemporaryDirectory() as tmp:
+        src = Path(tmp) / "rec.csv"
+        rows = np.column_stack([meas.t, meas.values])
+        np.savetxt(src, rows, delimiter=",", header="t," + ",".join(meas.sensor_names), comments="")
+        s = follow(problem, Path(tmp) / "out", source=str(src), idle_timeout=0.2)
+        with open(Path(tmp) / "out" / "lift.csv", newline="") as fh:
+            chi = [float(r["chi2_per_datum"]) for r in csv.DictReader(fh) if r.get("phase") == "tracking"]
+    return s, float(np.mean(chi)) if chi else float("nan")
+
+
+def row(label: str, s: dict, mean_chi2: float, truth: float, count: int, cpu: float) -> str:
+    lift, band = s.get("lift_N"), s.get("lift_std_N")
+    est = s.get("estimator", {})
+    if lift is None or not band:
+        return f"{label}: no answer ({s.get('status')})"
+    return (
+        f"{label}: {lift:.4f} ± {band:.4f} N for {truth:.4f} ({100 * (lift / truth - 1):+.2f} %, "
+        f"{(lift - truth) / band:+.2f} bands), {s.get('status')}, chi2/datum start-up "
+        f"{est.get('startup_chi2_per_datum', float('nan')):.2f} "
+        f"last window {s.get('chi2_per_datum', float('nan')):.2f} "
+        f"tracking mean {mean_chi2:.2f}, {s.get('samples')}/{count} samples, {len(s.get('warnings', []))} warnings, "
+        f"modelled: {est.get('acquisition')} ({cpu:.0f} s CPU)"
+    )
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", type=int, default=len(CASES), help="how many of the records")
+    ap.add_argument("--seconds", type=float, default=1.0, help="each record's length (s)")
+    ap.add_argument("--warnings", action="store_true", help="print each run's warnings")
+    args = ap.parse_args(argv)
+    logging.basicConfig(level=logging.ERROR)
+    for load, start, rate, seed in CASES[: args.cases]:
+        c = case(load, start, rate, seed, args.seconds)
+        problem = wo.load_problem("membrane").with_identification(initial_deflection=0.01 if start == "bubble" else 0.0)
+        rec, _, truth = fz.simulate(c, problem)
+        problem = problem.with_identification(initial_load=truth["side"] * abs(problem.identification.initial_load))
+        declared = Acquisition("butterworth", order=4, cutoff_hz=rate / 3)
+        for acquisition in ACQUISITIONS:
+            c["daq"] = "point" if acquisition == "point-sampled" else "butter-fs/3"
+            meas = fz._measurements(c, rec, truth["oversample"], problem.sensor_names)
+            p = dataclasses.replace(problem, acquisition=declared) if acquisition == "declared" else problem
+            t0 = time.process_time()
+            s, mean_chi2 = stream(p, meas)
+            label = f"{load} from {start}, {rate} Hz, {acquisition}"
+            print(row(label, s, mean_chi2, truth["lift"], meas.count, time.process_time() - t0), flush=True)
+            for w in s.get("warnings", []) if args.warnings else ():
+                print("    ", w)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
