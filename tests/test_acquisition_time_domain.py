@@ -59,3 +59,46 @@ def test_a_filtered_records_noise_is_read_with_the_filters_difference_gain():
     declared = estimate_noise_std(noise, difference_gain=acq.difference_gain(2, FS))
     assert np.all(np.abs(declared / true - 1) < 0.03)
     assert np.all(plain / true < 0.75)
+
+
+# -- a delay the time stamps do not take out ------------------------------------------------------------------
+def test_a_declared_delay_shifts_the_time_domain_prediction():
+    """A delta-sigma converter whose group delay the DAQ does not compensate: a sample stamped t holds
+    the sensors at t - delay. The time-domain fits shift their prediction by it (a band-limited
+    fractional delay, the record's start held before it); the spectra do not see it."""
+    fs, f0, delay = 300.0, 23.0, 8.4 / 300.0
+    acq = Acquisition("delta-sigma", delay_s=delay)
+    t = np.arange(600) / fs
+
+    def signal(t):  # smooth, at rest before t = 0
+        return np.where(t > 0, np.sin(2 * np.pi * f0 * t) * (1 - np.exp(-np.maximum(t, 0) / 0.05)) ** 2, 0.0)
+
+    y = acq.sample_filter(fs)(signal(t))
+    err = np.abs(y - signal(t - delay))
+    assert err[:-40].max() < 5e-3 * np.abs(y).max()  # the start too: held at rest before the record
+    # the spectra see none of it; without the delay a digital filter is point sampling to a time-domain fit
+    f = np.linspace(-150, 150, 301)
+    np.testing.assert_allclose(acq.power(f, fs), Acquisition("delta-sigma").power(f, fs), rtol=0, atol=1e-15)
+    assert Acquisition("delta-sigma").sample_filter(fs) is None
+    assert Acquisition("delta-sigma", delay_s=0).sample_filter(fs) is None
+    assert "8.4 ms delay not compensated" in Acquisition("fir", delay_s=8.4e-3).describe()
+    assert Acquisition.from_value({"kind": "delta-sigma", "delay_s": delay}) == acq
+    assert acq.as_dict()["delay_s"] == delay
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "needle"),
+    [
+        (
+            {"kind": "butterworth", "cutoff_hz": 100.0, "delay_s": 0.01},
+            "delay_s = 0.01: not a setting of kind 'butterworth'",
+        ),
+        ({"kind": "delta-sigma", "delay_s": -0.01}, "delay_s = -0.01: expected a delay in seconds"),
+        ({"kind": "point", "delay_s": 0.01}, "not a setting of kind 'point'"),
+    ],
+)
+def test_a_delay_is_a_digital_filters_and_positive(kwargs, needle):
+    from wingopt.errors import InputError
+
+    with pytest.raises(InputError, match=needle.replace("(", r"\(").replace(".", r"\.")):
+        Acquisition(**kwargs)

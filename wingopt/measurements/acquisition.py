@@ -100,6 +100,12 @@ class Acquisition:
         An analog filter's order (default 4).
     cutoff_hz : float, optional
         An analog filter's -3 dB frequency (Hz); required for ``butterworth`` and ``bessel``.
+    delay_s : float, optional
+        A digital filter's delay (s) that the DAQ's time stamps do not take out: a sample stamped
+        ``t`` holds the sensors at ``t - delay_s``. A delta-sigma converter's linear-phase FIR delays
+        by its group delay (in its data sheet, e.g. 38/fs); most DAQ drivers compensate it (the default,
+        0). The spectra do not see it; the time-domain fits (transient, calibration) shift their
+        prediction by it (:meth:`sample_filter`).
     """
 
     kind: str = "point"
@@ -108,6 +114,7 @@ class Acquisition:
     taps: int | None = None
     order: int | None = None
     cutoff_hz: float | None = None
+    delay_s: float | None = None
 
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
@@ -115,7 +122,7 @@ class Acquisition:
         digital = self.kind in _DIGITAL
         analog = self.kind in _ANALOG
         for name, ok in (("passband", digital), ("stopband", digital), ("taps", self.kind == "fir"),
-                         ("order", analog), ("cutoff_hz", analog)):  # fmt: skip
+                         ("order", analog), ("cutoff_hz", analog), ("delay_s", digital)):  # fmt: skip
             if getattr(self, name) is not None and not ok:
                 raise InputError(f"acquisition {name} = {getattr(self, name)!r}: not a setting of kind {self.kind!r}")
         if digital:
@@ -140,6 +147,9 @@ class Acquisition:
                 ):
                     raise InputError(f"acquisition taps = {self.taps!r}: expected a whole number of taps, 3 to 100000")
                 object.__setattr__(self, "taps", int(self.taps))
+        if self.delay_s is not None:
+            delay = 0.0 if self.delay_s == 0 else _number("delay_s", self.delay_s, 0, 1.0, "a delay in seconds, 0 to 1")
+            object.__setattr__(self, "delay_s", delay)
         if analog:
             order = 4 if self.order is None else self.order
             if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 1 <= order <= 12:
@@ -171,13 +181,19 @@ class Acquisition:
                 h = sig.firwin(self.taps, 0.5 * (self.passband + self.stopband) * fs, fs=rate)
                 _, H = sig.freqz(h, worN=np.abs(f).ravel(), fs=rate)
                 H = H * np.exp(2j * np.pi * np.abs(f).ravel() * (self.taps - 1) / (2 * rate))  # delay compensated
-                return np.where(f.ravel() < 0, np.conj(H), H).reshape(f.shape)
+                return np.where(f.ravel() < 0, np.conj(H), H).reshape(f.shape) * self._delay(f)
             a = np.abs(f) / fs
             x = np.clip((a - self.passband) / (self.stopband - self.passband), 0.0, 1.0)
-            return (0.5 * (1.0 + np.cos(np.pi * x))).astype(complex)
+            return (0.5 * (1.0 + np.cos(np.pi * x))) * self._delay(f)
         b, a = self._analog()
         _, H = sig.freqs(b, a, worN=2 * np.pi * np.abs(f).ravel())
         return np.where(f.ravel() < 0, np.conj(H), H).reshape(f.shape)
+
+    def _delay(self, f: np.ndarray) -> np.ndarray:
+        """The uncompensated delay's phase ``exp(-2 pi i f delay_s)`` (1 without one)."""
+        if not self.delay_s:
+            return np.ones(np.shape(f), dtype=complex)
+        return np.exp(-2j * np.pi * np.asarray(f, float) * self.delay_s)
 
     def _analog(self) -> tuple[np.ndarray, np.ndarray]:
         """An analog filter's transfer function ``b(s) / a(s)``."""
@@ -204,9 +220,9 @@ class Acquisition:
 
     def sample_filter(self, fs: float) -> SampleFilter | None:
         """What the filter does to a record sampled at ``fs`` (Hz), for a time-domain fit
-        (:class:`SampleFilter`); ``None`` for point sampling and for a digital filter (module
-        docstring)."""
-        if self.point or self.digital:
+        (:class:`SampleFilter`); ``None`` for point sampling and for a digital filter whose delay the
+        time stamps take out (module docstring): a digital filter with a ``delay_s`` is that delay."""
+        if self.point or (self.digital and not self.delay_s):
             return None
         f = np.fft.fftfreq(_GRID, 1.0 / fs)
         h = np.real(np.fft.ifft(self.response(f, fs)))
@@ -252,12 +268,17 @@ class Acquisition:
         if self.digital:
             taps = f", {self.taps} taps" if self.taps is not None else ""
             name = "delta-sigma FIR" if self.kind == "delta-sigma" else "digital FIR"
-            return f"{name} (passband {self.passband:.3g} fs, stopband {self.stopband:.3g} fs{taps})"
+            delay = f", {1e3 * self.delay_s:.4g} ms delay not compensated" if self.delay_s else ""
+            return f"{name} (passband {self.passband:.3g} fs, stopband {self.stopband:.3g} fs{taps}{delay})"
         return f"analog {self.kind} filter, order {self.order}, -3 dB at {self.cutoff_hz:.4g} Hz"
 
     def as_dict(self) -> dict:
         """What a run records."""
-        keys = ("passband", "stopband", "taps") if self.digital else ("order", "cutoff_hz") if not self.point else ()
+        keys = ()
+        if self.digital:
+            keys = ("passband", "stopband", "taps", "delay_s")
+        elif not self.point:
+            keys = ("order", "cutoff_hz")
         return {"kind": self.kind, **{k: getattr(self, k) for k in keys if getattr(self, k) is not None}}
 
     @classmethod
@@ -268,11 +289,11 @@ class Acquisition:
         if isinstance(value, str):
             return cls(value)
         if isinstance(value, dict):
-            unknown = sorted(set(value) - {"kind", "passband", "stopband", "taps", "order", "cutoff_hz"})
+            unknown = sorted(set(value) - {"kind", "passband", "stopband", "taps", "order", "cutoff_hz", "delay_s"})
             if unknown:
                 raise InputError(
                     f"{where}.{unknown[0]}: not an acquisition setting (expected kind, passband, stopband, taps, "
-                    "order, cutoff_hz)"
+                    "order, cutoff_hz, delay_s)"
                 )
             if "kind" not in value:
                 raise InputError(f"{where}: give its kind ({', '.join(KINDS)})")

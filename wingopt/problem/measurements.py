@@ -12,6 +12,7 @@
     acquisition = "delta-sigma"        # how the DAQ sampled: "point" (default), "delta-sigma", or a table:
     # acquisition = { kind = "butterworth", order = 4, cutoff_hz = 100.0 }
     # acquisition = { kind = "fir", passband = 0.4, stopband = 0.6, taps = 255 }
+    # acquisition = { kind = "delta-sigma", delay_s = 0.0267 }   # a group delay the stamps keep
 
 ``stretch = gain * (raw - offset)`` (:mod:`wingopt.measurements.channels`). ``acquisition`` is the
 DAQ's anti-aliasing filter (:class:`~wingopt.measurements.acquisition.Acquisition`): the spectral
