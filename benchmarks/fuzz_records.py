@@ -86,6 +86,10 @@ def _pluck(W: float, H: float, rng):
     return lambda x, y: peak * np.exp(-((x - x0) ** 2) / (2 * sx**2) - (y - y0) ** 2 / (2 * sy**2)) * frame(x, y)
 
 
+PRETRIGGER_FROM = 666
+"""The first record that may carry a pre-trigger (:func:`draw`)."""
+
+
 def draw(index: int, seed: int = 0) -> dict:
     """The parameters of record ``index`` (a pure function of the index and the seed)."""
     rng = np.random.default_rng([seed, index])
@@ -106,10 +110,14 @@ def draw(index: int, seed: int = 0) -> dict:
         "rounded_stamps": bool(rng.random() < 0.3),
         "seed": int(rng.integers(1 << 30)),
     }
+    # a DAQ triggered by the release keeps a pre-trigger of the wing holding still (records from
+    # PRETRIGGER_FROM on: the earlier draws stay what they were)
+    pre = rng.random() < 0.3 and index >= PRETRIGGER_FROM
+    case["pretrigger_s"] = float(rng.uniform(0.05, 0.3)) if pre else 0.0
     if route == "calibrate":
         case.update(load="none", start="pluck", gust=False)
     if route == "dic":  # a camera: at most 300 frames a second, and a DIC frame set of a few seconds
-        case.update(rate_hz=min(case["rate_hz"], 300), daq="point", rounded_stamps=False)
+        case.update(rate_hz=min(case["rate_hz"], 300), daq="point", rounded_stamps=False, pretrigger_s=0.0)
     return case
 
 
@@ -169,8 +177,19 @@ def simulate(case: dict, problem) -> tuple[object, object, dict]:
     return rec, fwd, truth | {"oversample": oversample, "side": side}
 
 
+def _pretriggered(case, rec) -> tuple[np.ndarray, np.ndarray]:
+    """The oversampled record with its pre-trigger: the wing's first state held, with the sensors' noise."""
+    t, y = rec.measurements.t, rec.measurements.values
+    n = int(round(case.get("pretrigger_s", 0.0) / (t[1] - t[0])))
+    if n == 0:
+        return t, y
+    rng = np.random.default_rng(case["seed"] + 1)
+    still = rec.trajectory.outputs[0] + rng.normal(size=(n, y.shape[1])) * rec.noise_std
+    return t[0] + (t[1] - t[0]) * np.arange(n + t.size), np.vstack([still, y])
+
+
 def _measurements(case, rec, oversample, names) -> Measurements:
-    t, y = _acquire(rec.measurements.t, rec.measurements.values, case["daq"], oversample)
+    t, y = _acquire(*_pretriggered(case, rec), case["daq"], oversample)
     if case["rounded_stamps"]:
         t = np.round(t, 4)
     return Measurements(t, y, names, None, f"fuzz #{case['index']}")

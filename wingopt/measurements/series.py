@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -73,6 +74,10 @@ class Measurements:
     @property
     def count(self) -> int:
         return self.t.size
+
+    def since(self, k: int) -> Measurements:
+        """The record from sample ``k`` on (a pre-trigger left out: :mod:`wingopt.estimation.core.onset`)."""
+        return dataclasses.replace(self, t=self.t[k:], values=self.values[k:])
 
     @property
     def missing(self) -> np.ndarray:

@@ -33,6 +33,7 @@ from wingopt.estimation.core.adequacy import assess
 from wingopt.estimation.core.load_model import LoadShapes
 from wingopt.estimation.core.model_form import prestrain_std_with_model_form
 from wingopt.estimation.core.noise import resolve_noise_std
+from wingopt.estimation.core.onset import lead_note, quiet_lead
 from wingopt.estimation.core.record_fit import levenberg_marquardt
 from wingopt.estimation.core.record_problem import PARAMETERS, ParameterPrior, RecordProblem
 from wingopt.estimation.core.start import initial_state_prior, modal_model, record_filter
@@ -158,6 +159,9 @@ def calibrate(
     sigma, noise_source = resolve_noise_std(
         meas.values, meas.sensor_names, noise_std, meas.noise_std, declared, acquisition=acquisition, fs=fs
     )
+    lead = quiet_lead(meas.values, sigma, 1.0 / fs)  # a pre-trigger: the fit starts where the pluck does
+    if lead:
+        meas = meas.since(lead)
     first = _candidate(model, meas, s, sigma, 0, None, "first")
     fits, chosen = [first], first
     est, std, corr = first.parameters, first.parameters_std, first.correlation
@@ -185,6 +189,9 @@ def calibrate(
         info["fits"] = [f.as_dict() for f in fits]
         info["iterations_total"] = sum(f.payload[2].iterations for f in fits)
     warnings = _warnings(rp, fit, ad, std) + warnings
+    if lead:
+        info["quiet_lead"] = {"samples": lead, "until_s": float(meas.t[0])}
+        warnings.append(lead_note(lead, meas.t))
     return Calibration(est, std, corr, float(first.chi2_per_datum), bool(adequate), warnings, info)
 
 

@@ -40,6 +40,7 @@ from wingopt.estimation.core.frame_check import (
     span_other,
     weigh,
 )
+from wingopt.estimation.core.onset import lead_note
 from wingopt.estimation.core.prior_check import conflict_test, load_prior_check
 from wingopt.estimation.core.record_fit import Fit
 from wingopt.estimation.core.record_problem import RecordProblem
@@ -203,6 +204,9 @@ def _reported(run: RecordRun, res: IdentificationResult, selection: dict, routin
             + (f"; not fitted: {', '.join(skipped)}" if skipped else "")
         )
     res.info["initial_shape"] = run.initial_shape
+    if run.lead:
+        res.info["quiet_lead"] = {"samples": run.lead, "until_s": float(run.meas.t[0])}
+        res.info["warnings"].append(lead_note(run.lead, run.meas.t))
     if run.initial_shape["contradicted"]:
         res.info["warnings"].append(contradiction_note(run.initial_shape))
     res.info["routing"] = routing

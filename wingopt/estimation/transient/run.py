@@ -16,6 +16,7 @@ from wingopt.errors import InputError
 from wingopt.estimation.core.load_model import LoadShapes
 from wingopt.estimation.core.load_prior import PriorScales, load_priors, prior_kinds
 from wingopt.estimation.core.noise import resolve_noise_std
+from wingopt.estimation.core.onset import quiet_lead
 from wingopt.estimation.core.record_fit import Budget, Fit, levenberg_marquardt
 from wingopt.estimation.core.record_problem import ParameterPrior, RecordProblem
 from wingopt.estimation.core.record_settings import RecordSettings
@@ -65,6 +66,9 @@ class RecordRun:
             meas.values, meas.sensor_names, None, meas.noise_std, ident.noise_std, acquisition=acquisition, fs=1 / dt
         )
         self.sigma = np.asarray(sigma, float)
+        self.lead = quiet_lead(meas.values, self.sigma, dt)  # a pre-trigger: the fit starts where the motion does
+        if self.lead:
+            self.meas = meas = meas.since(self.lead)
         self.p0 = ident.initial_load if initial_load is None else float(initial_load)
         substeps = max(s.substeps, int(np.ceil(dt / s.substep_s - 1e-9)))
         self.bm = modal_model(
