@@ -254,7 +254,7 @@ class NonlinearStreamingEstimator:
         out.update(self._recovery.info())
         if self.phase == "tracking":
             out["verdict"] = self.verdict.as_dict()
-        said = self.verdict.warnings() + ([self._daq_warning] if self._daq_warning else [])
+        said = self.verdict.warnings() + [w for w in (self._daq_warning, self.startup.get("lead_note")) if w]
         if said:
             out["warnings"] = list(out.get("warnings", [])) + said
         if self.phase not in ("waiting",):

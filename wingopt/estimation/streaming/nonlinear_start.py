@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from wingopt.estimation.core.onset import lead_note, quiet_lead
 from wingopt.estimation.core.record_fit import levenberg_marquardt
 from wingopt.estimation.core.record_problem import RecordProblem
 from wingopt.estimation.core.start import record_filter, scan
@@ -41,6 +42,8 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
     with its prior set (``_D``, ``_prior_state``) and a provisional estimate in ``est.x``.
     """
     bm, m, ms = est.bm, est.m, min(est.settings.state_modes, est.m)
+    lead = quiet_lead(Y, sigma, est.dt)  # a pre-trigger: the fit starts where the motion does
+    Y = Y[lead:]
     x_prior, _ = est._prior_state(Y)
     D = est._D
     x_mean = np.concatenate([D[:m] * x_prior[:m], np.zeros(m)])
@@ -104,6 +107,7 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
     est._nd[: r2.size] = rp.valid[tail].sum(axis=1)
     est._ring = r2.size - 1
     return {
+        **({"lead_note": lead_note(lead, t + est.dt * lead)} if lead else {}),
         "startup_iterations": fit.iterations,
         "startup_starts": starts,
         "startup_converged": fit.converged,
