@@ -56,7 +56,9 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
     theta0[sl["par"]] = est.x[est.ps]
     fit = levenberg_marquardt(rp, theta0, max_iter, START_DECREMENT)
     starts = 1
-    if fit.data_cost > (1 + TOLERANCE) * rp.n_data:  # not a fit: the batch's start (amplitude scan) too
+    # not a fit, or a provisional filter that ran through a pre-trigger expecting motion (its load may
+    # be the mirror's: L1 after 0.25 s still, -198 %): the batch's start (amplitude scan) too
+    if lead or fit.data_cost > (1 + TOLERANCE) * rp.n_data:
         other = levenberg_marquardt(rp, scan(rp, 1.0), max_iter, START_DECREMENT)
         starts = 2
         fit = other if other.cost < fit.cost else fit
