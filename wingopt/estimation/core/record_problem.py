@@ -25,6 +25,7 @@ from wingopt.errors import InputError
 from wingopt.estimation.core.load_model import GustAmplitude, LoadShapes
 from wingopt.estimation.declaration import declaration_of
 from wingopt.measurements.acquisition import SampleFilter
+from wingopt.measurements.analog_filter import CausalFilter
 from wingopt.membrane.forward import ForceTangent, ModalMembrane
 from wingopt.problem.membrane import IdentificationSettings
 
@@ -109,9 +110,11 @@ class RecordProblem:
     nonlinear: bool = True
     state_modes: int | None = None
     jacobian: str = "tangent"
-    daq: SampleFilter | None = None
-    """The DAQ's filter as it acts on the samples
-    (:meth:`~wingopt.measurements.acquisition.Acquisition.sample_filter`): the predicted outputs pass
+    daq: SampleFilter | CausalFilter | None = None
+    """The DAQ's filter: a declared analog one run causally on the outputs' Hermite interpolant at
+    the integrator's sub-steps (:class:`~wingopt.measurements.analog_filter.CausalFilter`, the modal
+    velocities giving the slopes), or as it acts on the samples
+    (:meth:`~wingopt.measurements.acquisition.Acquisition.sample_filter`); the predicted outputs pass
     through it as the record did; ``None``: point sampling."""
 
     def __post_init__(self) -> None:
@@ -196,14 +199,20 @@ class RecordProblem:
             return np.ones((self.t.size, g.shape[0]))
         return 1.0 + self.hats @ g.T
 
-    def trajectory(self, theta: np.ndarray) -> np.ndarray:
-        """Modal displacements ``(N, B, m)`` for a batch of unknowns ``(B, dim)``."""
+    @property
+    def causal(self) -> bool:
+        """Whether the DAQ's filter runs on the outputs' interpolant (:class:`CausalFilter`)."""
+        return isinstance(self.daq, CausalFilter)
+
+    def trajectory(self, theta: np.ndarray, every_substep: bool = False):
+        """Modal displacements ``(N, B, m)`` for a batch of unknowns ``(B, dim)``; with
+        ``every_substep`` the displacements and velocities at the integrator's sub-steps."""
         ph = self.physical(theta)
         amp = self.amplitude(ph["g"])[:-1]  # load held over each interval
         forces = amp[:, :, None] * (ph["c"] @ self._force_shapes)[None]
         bm = self.model
         par = (ph["prestrain_x"], ph["prestrain_y"], ph["damping"])
-        return bm.simulate(ph["q0"], ph["v0"], forces, *par, nonlinear=self.nonlinear)
+        return bm.simulate(ph["q0"], ph["v0"], forces, *par, nonlinear=self.nonlinear, every_substep=every_substep)
 
     # -- cost ------------------------------------------------------------------------------
     @cached_property
@@ -233,19 +242,34 @@ class RecordProblem:
             _, pred = self.predicted(theta)
             return ((self.y - pred) / self.sigma)[self.valid], Rp @ theta
         if self.jacobian == "tangent":
-            Qr, dQ = self._tangent(theta)
+            states = self._tangent(theta)  # Q, dQ (and V, dV at the sub-steps for a causal filter)
         else:
-            Q = self.trajectory(theta + 1j * _H * np.eye(self.dim))
-            Qr, dQ = Q[:, 0].real, Q.imag / _H
+            traj = self.trajectory(theta + 1j * _H * np.eye(self.dim), self.causal)
+            states = [x for X in (traj if self.causal else (traj,)) for x in (X[:, 0].real, X.imag / _H)]
+        Qr, dQ = states[:2]
         CQ = self.model.sensor_products(Qr)
         pred = np.einsum("kpi,ki->kp", CQ, Qr)
         J = -2.0 * np.matmul(CQ, dQ.transpose(0, 2, 1)) / self.sigma[None, :, None]  # batched GEMM, not einsum
-        if self.daq is not None:  # a linear filter: the filtered prediction's Jacobian is the filtered Jacobian
+        if self.causal:  # linear: the Jacobian is the filter on the inputs' sensitivities, exact
+            V, dV = states[2:]
+            CV = self.model.sensor_products(V)
+            Jd = -2.0 * (np.matmul(CV, dQ.transpose(0, 2, 1)) + np.matmul(CQ, dV.transpose(0, 2, 1)))
+            pred, J = (
+                self._filtered(pred, 2.0 * np.einsum("kpi,ki->kp", CQ, V)),
+                self._filtered(J, Jd / self.sigma[:, None]),
+            )
+        elif self.daq is not None:  # a linear filter: the filtered prediction's Jacobian is the filtered Jacobian
             pred, J = self.daq(pred), self.daq(J)
         return ((self.y - pred) / self.sigma)[self.valid], Rp @ theta, J[self.valid], Rp
 
-    def _tangent(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Trajectory and its exact derivatives by the tangent-linear integrator."""
+    def _filtered(self, h: np.ndarray, hd: np.ndarray) -> np.ndarray:
+        """The causal filter's record of the outputs ``h`` and their rates ``hd`` at the sub-steps."""
+        S = self.model.substeps
+        return self.daq(h, hd, self.model.dt / S, S)
+
+    def _tangent(self, theta: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Trajectory and its exact derivatives by the tangent-linear integrator (and, for a causal
+        filter, at the sub-steps, with the velocities and theirs)."""
         ph = self.physical(theta)
         P, sl, m, ms = self.dim, self.slices, self.model.m, self.state_modes
         dq0, dv0 = np.zeros((P, m)), np.zeros((P, m))
@@ -279,11 +303,32 @@ class RecordProblem:
             dpar,
             dforces,
             self.nonlinear,
+            self.causal,
         )
+
+    def outputs(self, theta: np.ndarray) -> np.ndarray:
+        """Predicted records ``(N, B, p)`` of a batch of unknowns ``(B, dim)``, the DAQ's filter
+        included (a start-up's ranking of candidates on a filtered record)."""
+        th = np.atleast_2d(np.asarray(theta, float))
+        bm = self.model
+        Q, *V = (X.real for X in ((self.trajectory(th, True)) if self.causal else (self.trajectory(th),)))
+        flat = Q.reshape(-1, bm.m)
+        CQ = bm.sensor_products(flat)
+        h = np.einsum("kpi,ki->kp", CQ, flat).reshape(Q.shape[:2] + (bm.p,))
+        if self.causal:
+            hd = 2.0 * np.einsum("kpi,ki->kp", CQ, V[0].reshape(-1, bm.m)).reshape(h.shape)
+            return self._filtered(h, hd)
+        return h if self.daq is None else self.daq(h)
 
     def predicted(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Modal trajectory ``(N, m)`` and predicted outputs ``(N, p)``."""
-        Q = self.trajectory(np.asarray(theta, float)[None])[:, 0].real
+        th = np.asarray(theta, float)[None]
+        if self.causal:
+            Q, V = (X[:, 0].real for X in self.trajectory(th, True))
+            CQ = self.model.sensor_products(Q)
+            pred = self._filtered(np.einsum("kpi,ki->kp", CQ, Q), 2.0 * np.einsum("kpi,ki->kp", CQ, V))
+            return Q[:: self.model.substeps], pred
+        Q = self.trajectory(th)[:, 0].real
         pred = self.model.outputs(Q)
         return Q, pred if self.daq is None else self.daq(pred)
 

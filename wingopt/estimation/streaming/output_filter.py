@@ -3,11 +3,13 @@
 A record handed over by an analog low-pass (a declared ``butterworth`` or ``bessel``
 :class:`~wingopt.measurements.acquisition.Acquisition`) is not the membrane's outputs at the sample
 times: a 4th-order Butterworth at fs/3 passes a 50 Hz ringing at 300 Hz at 0.91 of its amplitude,
-1.9 ms late. The batch fits filter their predicted record (:class:`~wingopt.measurements.
-acquisition.SampleFilter`, slightly non-causal); a filter that goes one sample at a time carries the
-analog filter's own states instead. Per sensor ``i`` the filter's continuous state space ``(A, B,
-C, D)`` (the normalisation :meth:`~wingopt.measurements.acquisition.Acquisition.response` uses)
-runs on the sensor's signal ``h_i(t) = q^T C_i q``; the record is ``y_k = C w_k + D h(x_k)``.
+1.9 ms late. The batch fits run the filter over their whole predicted record at the integrator's
+sub-steps (:class:`~wingopt.measurements.analog_filter.CausalFilter`; the stream's start-up fit is
+one of them); a filter that goes one sample at a time carries the analog filter's own states at the
+sample rate instead (modes above the Nyquist frequency, which ring at a release, are followed less
+well there: the start-up fit has taken the release). Per sensor ``i`` the filter's continuous state
+space ``(A, B, C, D)`` (:meth:`~wingopt.measurements.acquisition.Acquisition.state_space`) runs on
+the sensor's signal ``h_i(t) = q^T C_i q``; the record is ``y_k = C w_k + D h(x_k)``.
 
 Between two samples the input is the cubic Hermite interpolant of ``h`` and its derivative
 ``dh/dt = 2 q^T C_i v`` at both ends (the modal velocities are in the state): a linear
@@ -17,65 +19,32 @@ well within 1 % (``tests/test_stream_daq.py`` checks against ``scipy.signal.lsim
     w_{k+1} = Ad w_k + b0 h_k + b1 dt h'_k + b2 h_{k+1} + b3 dt h'_{k+1},
 
 ``Ad = exp(A dt)`` and ``b_j = int_0^dt exp(A (dt - s)) B phi_j(s / dt) ds`` for the four Hermite
-basis functions ``phi_j``, computed once by Gauss–Legendre quadrature. The map is linear in the
-input: the states' sensitivity to the stream's unknowns, ``dW = dw / dtheta``, goes on with the same
-matrices from the input's (``dh / dtheta = 2 C_i q dq/dtheta``, and the derivative's), exact, as
-``G`` does; the measurement Jacobian is ``C dW + D H G`` and an update ``dtheta`` moves the states
-by ``dW dtheta``. At the start the states sit settled on the first predicted output (a wing at rest
-or in equilibrium: the DAQ ran before the record, as :class:`~wingopt.measurements.acquisition.
-SampleFilter` assumes).
+basis functions ``phi_j``, computed once by Gauss–Legendre quadrature
+(:class:`~wingopt.measurements.analog_filter.AnalogFilter`, which the batch fits share). The map is
+linear in the input: the states' sensitivity to the stream's unknowns, ``dW = dw / dtheta``, goes
+on with the same matrices from the input's (``dh / dtheta = 2 C_i q dq/dtheta``, and the
+derivative's), exact, as ``G`` does; the measurement Jacobian is ``C dW + D H G`` and an update
+``dtheta`` moves the states by ``dW dtheta``. At the start the states sit settled on the first
+predicted output (a wing at rest or in equilibrium: the DAQ ran before the record).
 
 A digital decimation filter (``fir``, ``delta-sigma``) is flat and delay-compensated in its
 passband: in the time domain it is point sampling, and the stream predicts point samples, as for
 ``point`` (:func:`output_filter` returns ``None``; the stream is then what it was without a
-declaration).
+declaration). A declared delay the time stamps keep (``delay_s``) is modelled by the start-up's
+batch fit, not by the filter's one-sample steps: the stream says so.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-import scipy.linalg as sla
+
+from wingopt.measurements.analog_filter import AnalogFilter
 
 __all__ = ["AnalogFilter", "FilterStates", "SensorInput", "output_filter", "sensor_input"]
 
-NODES = 16
-"""Gauss–Legendre nodes of the input matrices' quadrature (the integrand is smooth: exact to rounding)."""
-
 _MODELLED = ("butterworth", "bessel")
-
-
-def _hermite(tau: np.ndarray) -> np.ndarray:
-    """The cubic Hermite basis ``(4, n)`` at ``tau`` in [0, 1]: value and slope at 0, value and slope at 1."""
-    t2, t3 = tau**2, tau**3
-    return np.array([2 * t3 - 3 * t2 + 1, t3 - 2 * t2 + tau, 3 * t2 - 2 * t3, t3 - t2])
-
-
-@dataclass(frozen=True, eq=False)
-class AnalogFilter:
-    """An analog filter discretised at the sample period ``dt`` for a Hermite-interpolated input.
-
-    ``Ad`` ``(n, n)``: the states' map over a sample; ``Bh`` ``(4, n)``: the input's, per
-    ``(h_k, h'_k, h_{k+1}, h'_{k+1})`` (the slopes' ``dt`` folded in); ``C``, ``D``: the output;
-    ``rest`` ``(n,)``: the states settled on a unit input (``-A^-1 B``)."""
-
-    Ad: np.ndarray
-    Bh: np.ndarray
-    C: np.ndarray
-    D: float
-    rest: np.ndarray
-
-    @classmethod
-    def discretise(cls, A: np.ndarray, B: np.ndarray, C: np.ndarray, D: float, dt: float) -> AnalogFilter:
-        """``(A, B, C, D)`` continuous, at the sample period ``dt`` (s)."""
-        x, wq = np.polynomial.legendre.leggauss(NODES)
-        tau, wq = 0.5 * (x + 1.0), 0.5 * wq
-        kernel = np.array([sla.expm(A * (dt * (1.0 - s))) @ B for s in tau])  # (NODES, n)
-        Bh = dt * (_hermite(tau) * wq) @ kernel
-        Bh[1::2] *= dt  # the slopes enter as dt h'
-        return cls(sla.expm(A * dt), Bh, np.asarray(C, float), float(D), -np.linalg.solve(A, B))
 
 
 class SensorInput(NamedTuple):
@@ -141,6 +110,12 @@ def output_filter(acquisition, dt: float) -> tuple[FilterStates | None, str, str
         return FilterStates(AnalogFilter.discretise(*acquisition.state_space(), dt)), said, None
     if acquisition.point:
         return None, said, None
+    if acquisition.digital and acquisition.delay_s:
+        warning = (
+            f"the declared acquisition ({said}): the stream's start-up fit shifts its prediction by the delay, "
+            "its one-sample filter does not (a lag the tracking reads as a misfit)"
+        )
+        return None, f"{said}: point samples of its passband", warning
     if acquisition.digital:  # flat and delay-compensated in its passband: point sampling (module docstring)
         return None, f"{said}: point samples of its passband", None
     warning = (

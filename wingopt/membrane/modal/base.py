@@ -23,9 +23,16 @@ import scipy.linalg as sla
 
 from wingopt.errors import InputError, SolverError
 from wingopt.fe import DX, DY, VALUE, assemble, separable
-from wingopt.membrane.modal.kernels import SETTLE_TOL, SETTLE_TOL_TANGENT, settled_from, step_tangent, trajectory
+from wingopt.membrane.modal.kernels import (
+    SETTLE_TOL,
+    SETTLE_TOL_TANGENT,
+    step_tangent,
+    tangent_substeps,
+    trajectory,
+    trajectory_substeps,
+)
 from wingopt.membrane.modal.kernels import tangent as record_tangent
-from wingopt.membrane.modal.tangent import ForceTangent
+from wingopt.membrane.modal.tangent import ForceTangent, settled_from
 from wingopt.membrane.model import MembraneModel
 from wingopt.membrane.parameters import MembraneParameters, membrane_stiffness
 
@@ -183,8 +190,8 @@ class ModalMembrane:
         """The compiled loop's force law (:mod:`.laws`), its arrays in ``dtype`` (subclasses)."""
         raise NotImplementedError
 
-    def simulate(self, q0, v0, forces, ex, ey, damping=1.0, nonlinear: bool = True) -> np.ndarray:
-        """Modal displacements at every sample.
+    def simulate(self, q0, v0, forces, ex, ey, damping=1.0, nonlinear: bool = True, every_substep: bool = False):
+        """Modal displacements at every sample (or displacements and velocities at every sub-step).
 
         Parameters
         ----------
@@ -196,6 +203,10 @@ class ModalMembrane:
             Prestrains and damping factor.
         nonlinear : bool
             ``False`` leaves the deflection's own stiffening out (the linear membrane).
+        every_substep : bool
+            The states at every sub-step, ``Q`` and the modal velocities ``V`` ``(N substeps + 1,
+            ..., m)`` (sample ``n`` at row ``n substeps``; a DAQ filter run on the outputs' Hermite
+            interpolant, :mod:`wingopt.measurements.analog_filter`).
 
         Returns
         -------
@@ -211,7 +222,8 @@ class ModalMembrane:
         lead = (1,) * (len(shape) - forces.ndim + 2)  # the force's batch axes are the trailing ones
         F = np.broadcast_to(forces.reshape((N,) + lead + forces.shape[1:]), (N,) + shape + (m,))
         ex, ey, damping = (np.broadcast_to(np.asarray(x, dtype), shape) for x in (ex, ey, damping))
-        Q = np.empty((N + 1,) + shape + (m,), dtype)
+        Q = np.empty((N * (self.substeps if every_substep else 1) + 1,) + shape + (m,), dtype)
+        V = np.empty_like(Q) if every_substep else None
         law = self.force_law(nonlinear, dtype)
         real = dtype == np.float64
         with np.errstate(over="ignore", invalid="ignore"):  # a diverging trial step gives non-finite costs
@@ -220,11 +232,19 @@ class ModalMembrane:
                 Fi = np.ascontiguousarray(F[(slice(None),) + i], dtype)
                 settle = settled_from(Fi) if real and self.settles else N
                 q, v = np.array(q0[i], dtype), np.array(v0[i], dtype)
-                Q[(slice(None),) + i] = trajectory(q, v, Fi, k0, a, e, h, self.substeps, law, settle, SETTLE_TOL)
-        return Q
+                at = (slice(None),) + i
+                if V is None:
+                    Q[at] = trajectory(q, v, Fi, k0, a, e, h, self.substeps, law, settle, SETTLE_TOL)
+                else:
+                    Q[at], V[at] = trajectory_substeps(q, v, Fi, k0, a, e, h, self.substeps, law, settle, SETTLE_TOL)
+        return Q if V is None else (Q, V)
 
-    def simulate_tangent(self, q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforces, nonlinear: bool = True):
-        """Trajectory ``(N+1, m)`` and its exact tangents ``(N+1, P, m)`` (real arguments).
+    def simulate_tangent(
+        self, q0, v0, forces, ex, ey, damping, dq0, dv0, dpar, dforces, nonlinear: bool = True, every_substep=False
+    ):
+        """Trajectory ``(N+1, m)`` and its exact tangents ``(N+1, P, m)`` (real arguments); with
+        ``every_substep`` (a :class:`~.tangent.ForceTangent` only) at every sub-step, ``(N substeps
+        + 1, ...)``, and the modal velocities and their tangents beside them: ``Q, dQ, V, dV``.
 
         Parameters
         ----------
@@ -246,8 +266,10 @@ class ModalMembrane:
             amp, base, hats = np.asarray(f.amp, float), mm(f.base), np.ascontiguousarray(f.hats, float)
             force = (amp, base, hats, int(f.g0), np.asarray(f.fc, float))
             tols = (SETTLE_TOL, SETTLE_TOL_TANGENT)
-            Q, dQ = record_tangent(q, v, forces, *terms, mm(dq0), mm(dv0), *force, settle, tols)
-            return Q, dQ.transpose(0, 2, 1)
+            run = tangent_substeps if every_substep else record_tangent
+            return _major(run(q, v, forces, *terms, mm(dq0), mm(dv0), *force, settle, tols))
+        if every_substep:
+            raise InputError("simulate_tangent: every_substep needs the force's tangent as a ForceTangent")
         dq, dv = mm(dq0), mm(dv0)
         Q, dQ = np.empty((N + 1, self.m)), np.empty((N + 1,) + dq.shape)
         Q[0], dQ[0] = q, dq
@@ -316,3 +338,8 @@ class ModalMembrane:
         qv = np.zeros(self.m) if v0 is None else self.to_modal(np.asarray(v0, float))
         Q = self.simulate(q0, qv, self.modal_force(F), par.eps0_x, par.eps0_y, par.viscous_scale, nonlinear)
         return self.deflection(Q)
+
+
+def _major(out: tuple) -> tuple:
+    """The compiled loop's ``(Q, dQ[, V, dV])`` with the tangents direction-major ``(N+1, P, m)``."""
+    return tuple(x if x.ndim == 2 else x.transpose(0, 2, 1) for x in out)

@@ -14,7 +14,9 @@ The predictor-corrector sub-step is written once (:func:`_substep`): the state a
 ``P`` directions (mode-major ``(m, P)``; ``P = 0``: the state alone), the transcendental functions
 evaluated once per mode and stage and the directions propagated by multiply-adds.
 :func:`trajectory` integrates a record (real or complex), :func:`tangent` a record and its exact
-tangent, :func:`step_tangent` one sample with the velocity tangents too (the streaming filter). For
+tangent (:func:`trajectory_substeps`, :func:`tangent_substeps`: at every sub-step, with the modal
+velocities and theirs, for a DAQ filter run on the outputs' interpolant), :func:`step_tangent`
+one sample with the velocity tangents too (the streaming filter). For
 ``q1, v1 = step(q, v, u, k, a)``: ``dCZ/dzz = -SZ/2``, ``dSZ/dzz = (CZ - SZ) / (2 zz)``,
 ``de/da = -h e``. Why compiled: one sample is ~100 small array operations in NumPy, so a 1 s
 record at 1 kHz costs ~0.5 s per Jacobian in interpreter overhead alone; here it costs the arithmetic.
@@ -28,8 +30,18 @@ from numba.core import types
 from numba.extending import overload
 
 from wingopt.membrane.modal.laws import stiffness_tangent
+from wingopt.membrane.modal.tangent import settled_from  # the kernels' settle index, here as before
 
-__all__ = ["SETTLE_TOL", "SETTLE_TOL_TANGENT", "settled_from", "trajectory", "tangent", "step_tangent"]
+__all__ = [
+    "SETTLE_TOL",
+    "SETTLE_TOL_TANGENT",
+    "settled_from",
+    "trajectory",
+    "trajectory_substeps",
+    "tangent",
+    "tangent_substeps",
+    "step_tangent",
+]
 
 SETTLE_TOL = 1e-11
 """Relative change per sample below which a trajectory under a constant force has settled: the rest
@@ -40,18 +52,6 @@ SETTLE_TOL_TANGENT = 1e-7
 """The same for the tangents: a Jacobian needs far fewer digits than the residuals (an error of
 1e-7 moves a Levenberg–Marquardt step by as little, and the band not at all); on a 1 s record it
 settles ~0.3 s earlier (the slowest decay, 30 ms, takes 0.28 s for the four decades)."""
-
-
-def settled_from(forces: np.ndarray, amp: np.ndarray | None = None, hats: np.ndarray | None = None) -> int:
-    """First interval from which the force (and its tangent) no longer changes (``N``: never)."""
-    N = forces.shape[0]
-    moving = np.any(forces[1:] != forces[:-1], axis=1)
-    if amp is not None:
-        moving |= amp[1:N] != amp[: N - 1]
-        if hats.shape[1]:
-            moving |= np.any(hats[1:N] != hats[: N - 1], axis=1)
-    idx = np.flatnonzero(moving)
-    return 0 if idx.size == 0 else int(idx[-1]) + 1
 
 
 def _cs(zz):  # pragma: no cover - compiled through the overload below
@@ -255,24 +255,67 @@ def trajectory(q0, v0, forces, k0, a, e, h, substeps, law, settle, tol):
     N, m = forces.shape
     Q = np.empty((N + 1, m), q0.dtype)
     Q[0] = q0
-    _continue(Q, q0, v0, forces, 0, k0, a, e, h, substeps, law, _linear_table(k0, a, e, h, law[1]), settle, tol)
+    none = np.empty((0, m), q0.dtype)  # not at the sub-steps, no velocities
+    _continue(Q, none, q0, v0, forces, 0, k0, a, e, h, substeps, law, _linear_table(k0, a, e, h, law[1]), settle, tol)
     return Q
 
 
 @njit(cache=True)
-def _continue(Q, q, v, forces, n0, k0, a, e, h, substeps, law, table, settle, tol):
-    """Fill ``Q[n0 + 1:]`` with the state alone from ``q, v`` at sample ``n0``, stopping once settled."""
+def trajectory_substeps(q0, v0, forces, k0, a, e, h, substeps, law, settle, tol):
+    """:func:`trajectory` at every sub-step (sample ``n`` at row ``n substeps``), the modal
+    velocities ``(N substeps + 1, m)`` beside it (a settled record holds its last state)."""
+    N, m = forces.shape
+    Q, V = np.empty((N * substeps + 1, m), q0.dtype), np.empty((N * substeps + 1, m), q0.dtype)
+    Q[0], V[0] = q0, v0
+    _continue(Q, V, q0, v0, forces, 0, k0, a, e, h, substeps, law, _linear_table(k0, a, e, h, law[1]), settle, tol)
+    return Q, V
+
+
+@njit(cache=True)
+def _samples(state, u, du, k0, dk0, a, da, e, h, substeps, law, table, w, n, Q, dQ, V, dV):
+    """One sample on from sample ``n``, into row ``n + 1`` of ``Q`` (and ``dQ`` when it has
+    directions), or, where ``V`` has rows, every sub-step's state into the rows ``n substeps + s``
+    of ``Q, V, dQ, dV``; returns the state and the rows of samples ``n + 1`` and ``n``."""
+    if V.shape[0] == 0:
+        state = _advance(state, u, du, k0, dk0, a, da, e, h, substeps, law, table, w)
+        Q[n + 1] = state[0]
+        if dQ.shape[0]:
+            dQ[n + 1] = state[2]
+        return state, n + 1, n
+    for s in range(1, substeps + 1):  # one sub-step at a time: the same arithmetic
+        state = _advance(state, u, du, k0, dk0, a, da, e, h, 1, law, table, w)
+        i = n * substeps + s
+        Q[i], V[i] = state[0], state[1]
+        if dQ.shape[0]:
+            dQ[i], dV[i] = state[2], state[3]
+    return state, (n + 1) * substeps, n * substeps
+
+
+@njit(cache=True)
+def _continue(Q, V, q, v, forces, n0, k0, a, e, h, substeps, law, table, settle, tol):
+    """Fill ``Q`` (and ``V``: :func:`_samples`) after sample ``n0`` with the state alone from
+    ``q, v`` there, stopping once settled."""
     N, m = forces.shape
     none = np.empty((m, 0), q.dtype)  # no tangent directions
     state = _state(q, v, none, none)
     w = _work(q, 0, law)
+    nothing = np.empty((0, m, 0), q.dtype)
     for n in range(n0, N):
-        state = _advance(state, forces[n], none, k0, none, a, none, e, h, substeps, law, table, w)
-        Q[n + 1] = state[0]
-        if n >= settle and _converged(Q[n + 1], Q[n], state[1] * (h * substeps), tol):
-            for j in range(n + 2, N + 1):
-                Q[j] = state[0]
+        state, i1, i0 = _samples(
+            state, forces[n], none, k0, none, a, none, e, h, substeps, law, table, w, n, Q, nothing, V, nothing
+        )
+        if n >= settle and _converged(Q[i1], Q[i0], state[1] * (h * substeps), tol):
+            _hold(Q, V, i1, state[0], state[1])
             break
+
+
+@njit(cache=True)
+def _hold(X, Y, i, x, y):
+    """The rows after ``i`` of ``X`` (and of ``Y`` when it has rows) hold ``x`` (``y``): settled."""
+    for j in range(i + 1, X.shape[0]):
+        X[j] = x
+        if Y.shape[0]:
+            Y[j] = y
 
 
 @njit(cache=True)
@@ -297,8 +340,34 @@ def tangent(q0, v0, forces, k0, dk0, a, da, e, h, substeps, law, dq0, dv0, amp, 
     """
     N, m = forces.shape
     P = dq0.shape[1]
-    Q = np.empty((N + 1, m))
-    dQ = np.empty((N + 1, m, P))
+    Q, dQ = np.empty((N + 1, m)), np.empty((N + 1, m, P))
+    V, dV = np.empty((0, m)), np.empty((0, m, P))  # not at the sub-steps, no velocities
+    force = (amp, dforce, hats, g0, fc)
+    _record_tangent(Q, dQ, V, dV, q0, v0, forces, k0, dk0, a, da, e, h, substeps, law, dq0, dv0, force, settle, tols)
+    return Q, dQ
+
+
+@njit(cache=True)
+def tangent_substeps(
+    q0, v0, forces, k0, dk0, a, da, e, h, substeps, law, dq0, dv0, amp, dforce, hats, g0, fc, settle, tols
+):
+    """:func:`tangent` at every sub-step (sample ``n`` at row ``n substeps``) with the modal
+    velocities ``(N substeps + 1, m)`` and their tangents (held, as the displacements', once settled)."""
+    N, m = forces.shape
+    n, P = N * substeps + 1, dq0.shape[1]
+    Q, dQ, V, dV = np.empty((n, m)), np.empty((n, m, P)), np.empty((n, m)), np.empty((n, m, P))
+    force = (amp, dforce, hats, g0, fc)
+    _record_tangent(Q, dQ, V, dV, q0, v0, forces, k0, dk0, a, da, e, h, substeps, law, dq0, dv0, force, settle, tols)
+    return Q, dQ, V, dV
+
+
+@njit(cache=True)
+def _record_tangent(Q, dQ, V, dV, q0, v0, forces, k0, dk0, a, da, e, h, substeps, law, dq0, dv0, force, settle, tols):
+    """The loop of :func:`tangent` into ``Q, dQ`` (and ``V, dV``: :func:`_samples`); ``force``:
+    ``(amp, dforce, hats, g0, fc)``."""
+    amp, dforce, hats, g0, fc = force
+    N, m = forces.shape
+    P = dq0.shape[1]
     state = _state(q0, v0, dq0, dv0)
     w = _work(q0, P, law)
     du = np.empty((m, P))
@@ -306,6 +375,8 @@ def tangent(q0, v0, forces, k0, dk0, a, da, e, h, substeps, law, dq0, dv0, amp, 
     ng = hats.shape[1]
     dt = h * substeps
     Q[0], dQ[0] = q0, dq0
+    if V.shape[0]:
+        V[0], dV[0] = v0, dv0
     for n in range(N):
         an = amp[n]
         for j in range(m):
@@ -314,17 +385,12 @@ def tangent(q0, v0, forces, k0, dk0, a, da, e, h, substeps, law, dq0, dv0, amp, 
                 duj[p] = an * dfj[p]
             for g in range(ng):
                 duj[g0 + g] += hats[n, g] * fc[j]
-        state = _advance(state, forces[n], du, k0, dk0, a, da, e, h, substeps, law, table, w)
+        state, i1, i0 = _samples(state, forces[n], du, k0, dk0, a, da, e, h, substeps, law, table, w, n, Q, dQ, V, dV)
         q, v, dq, dv = state[0], state[1], state[2], state[3]
-        Q[n + 1] = q
-        dQ[n + 1] = dq
-        if n >= settle and _converged(dQ[n + 1], dQ[n], dv * dt, tols[1]):
-            for j in range(n + 2, N + 1):
-                dQ[j] = dq
-            if not _converged(Q[n + 1], Q[n], v * dt, tols[0]):
-                _continue(Q, q, v, forces, n + 1, k0, a, e, h, substeps, law, table, settle, tols[0])
+        if n >= settle and _converged(dQ[i1], dQ[i0], dv * dt, tols[1]):
+            _hold(dQ, dV, i1, dq, dv)
+            if not _converged(Q[i1], Q[i0], v * dt, tols[0]):
+                _continue(Q, V, q, v, forces, n + 1, k0, a, e, h, substeps, law, table, settle, tols[0])
             else:
-                for j in range(n + 2, N + 1):
-                    Q[j] = q
+                _hold(Q, V, i1, q, v)
             break
-    return Q, dQ
