@@ -26,6 +26,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 
+import daq_transient  # noqa: E402 - the DAQ records' cases, beside this file
 import fuzz_records as fz  # noqa: E402 - the fuzz's generator, beside this file
 
 import wingopt as wo  # noqa: E402
@@ -37,23 +38,9 @@ ACQUISITIONS = ("point-sampled", "undeclared", "declared")
 
 
 def case(load: str, start: str, rate: int, seed: int, seconds: float) -> dict:
-    """A record of the stream route, handed over by the Butterworth (its truth oversampled 4x)."""
-    return {
-        "index": -1,
-        "route": "stream",
-        "load": load,
-        "prestrain_factor": [1.1, 0.9],
-        "damping": 1.0,
-        "noise_percent": 1.0,
-        "t_end": seconds,
-        "rate_hz": rate,
-        "gust": False,
-        "start": start,
-        "declared_shape": start == "bubble",
-        "daq": "butter-fs/3",
-        "rounded_stamps": False,
-        "seed": seed,
-    }
+    """A record of the stream route, handed over by the Butterworth (``daq_transient``'s, its truth
+    oversampled 4x)."""
+    return daq_transient.case(load, start, rate, seed) | {"route": "stream", "t_end": seconds}
 
 
 def stream(problem, meas) -> tuple[dict, float]:
