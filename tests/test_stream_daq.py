@@ -72,6 +72,9 @@ def test_only_an_analog_filter_gets_states():
     assert output_filter(Acquisition("delta-sigma"), 1 / RATE)[0] is None
     states, said, warning = output_filter(BUTTER, 1 / RATE)
     assert states is not None and "butterworth" in said and warning is None
+    # a delay the time stamps keep: the start-up fit models it, the one-sample filter does not, and says so
+    states, said, warning = output_filter(Acquisition("delta-sigma", delay_s=0.02), 1 / RATE)
+    assert states is None and "20 ms delay not compensated" in said and "its one-sample filter does not" in warning
 
 
 @functools.cache
