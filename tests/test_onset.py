@@ -71,3 +71,15 @@ def test_a_pre_trigger_no_longer_breaks_the_transient_fit(fvk_short_record):
     ref, ref_band = plain.reported_lift
     assert abs(lift - ref) < 0.25 * ref_band  # what is right does not move beyond a quarter of its band
     assert late.info["adequacy"]["chi2_per_datum"] < 1.5
+
+
+def test_the_still_samples_of_a_declared_delay_stay():
+    """A DAQ that keeps its filter's delay in the time stamps shows the wing still for that delay
+    after the release: the fit models those samples (its prediction is shifted by the delay), so
+    they are not a pre-trigger."""
+    from wingopt.measurements.acquisition import Acquisition
+
+    y = _noisy(_ringing(T - T[30]))
+    assert quiet_lead(y, np.ones(4), 1 / 300, Acquisition("delta-sigma", delay_s=10 / 300)) == 20
+    assert quiet_lead(y, np.ones(4), 1 / 300, Acquisition("delta-sigma", delay_s=28 / 300)) == 0  # the delay's own
+    assert quiet_lead(y, np.ones(4), 1 / 300, Acquisition("delta-sigma")) == 30

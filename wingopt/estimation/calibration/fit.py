@@ -159,7 +159,7 @@ def calibrate(
     sigma, noise_source = resolve_noise_std(
         meas.values, meas.sensor_names, noise_std, meas.noise_std, declared, acquisition=acquisition, fs=fs
     )
-    lead = quiet_lead(meas.values, sigma, 1.0 / fs)  # a pre-trigger: the fit starts where the pluck does
+    lead = quiet_lead(meas.values, sigma, 1.0 / fs, acquisition)  # a pre-trigger: the fit starts where the pluck does
     if lead:
         meas = meas.since(lead)
     first = _candidate(model, meas, s, sigma, 0, None, "first")

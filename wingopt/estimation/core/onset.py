@@ -39,7 +39,7 @@ where a wing loaded from rest may show nothing above a 5 % noise for a few milli
 stretch grows with the square of a deflection that grows with the square of time) while it moves."""
 
 
-def quiet_lead(y: np.ndarray, sigma: np.ndarray, dt: float) -> int:
+def quiet_lead(y: np.ndarray, sigma: np.ndarray, dt: float, acquisition=None) -> int:
     """The number of still samples at the start of the record ``y`` before an abrupt start.
 
     Parameters
@@ -50,6 +50,9 @@ def quiet_lead(y: np.ndarray, sigma: np.ndarray, dt: float) -> int:
         The sensors' noise std.
     dt : float
         The sample period (s).
+    acquisition : Acquisition, optional
+        The declared DAQ: the still samples its declared delay (``delay_s``) puts before the motion
+        are the record's, which the fit's prediction models (it is shifted by the delay); they stay.
 
     Returns
     -------
@@ -64,7 +67,9 @@ def quiet_lead(y: np.ndarray, sigma: np.ndarray, dt: float) -> int:
     rise = np.abs(z[start : start + RISE + 1] - _still_mean(z[:start]))
     if not np.nanmax(rise, initial=0.0) >= JUMP:
         return 0
-    return start - 1
+    delay = getattr(acquisition, "delay_s", None) or 0.0
+    lead = start - 1 - int(np.ceil(delay / dt - 1e-9))
+    return lead if lead >= MIN_LEAD and lead * dt >= MIN_LEAD_S else 0
 
 
 def _first_move(z: np.ndarray) -> int | None:

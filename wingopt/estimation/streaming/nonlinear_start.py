@@ -42,7 +42,8 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
     with its prior set (``_D``, ``_prior_state``) and a provisional estimate in ``est.x``.
     """
     bm, m, ms = est.bm, est.m, min(est.settings.state_modes, est.m)
-    lead = quiet_lead(Y, sigma, est.dt)  # a pre-trigger: the fit starts where the motion does
+    # a pre-trigger: the fit starts where the motion does
+    lead = quiet_lead(Y, sigma, est.dt, est.model.problem.acquisition)
     Y = Y[lead:]
     x_prior, _ = est._prior_state(Y)
     D = est._D

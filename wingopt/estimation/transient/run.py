@@ -66,7 +66,8 @@ class RecordRun:
             meas.values, meas.sensor_names, None, meas.noise_std, ident.noise_std, acquisition=acquisition, fs=1 / dt
         )
         self.sigma = np.asarray(sigma, float)
-        self.lead = quiet_lead(meas.values, self.sigma, dt)  # a pre-trigger: the fit starts where the motion does
+        # a pre-trigger: the fit starts where the motion does
+        self.lead = quiet_lead(meas.values, self.sigma, dt, acquisition)
         if self.lead:
             self.meas = meas = meas.since(self.lead)
         self.p0 = ident.initial_load if initial_load is None else float(initial_load)
