@@ -180,3 +180,44 @@ def test_the_causal_filter_settles_on_the_first_value_and_is_linear():
 
 if __name__ == "__main__":  # the reference of the numbers without a causal filter
     np.savez_compressed(sys.argv[1], **{f"{n}/{k}": v for n, rp in problems().items() for k, v in _arrays(rp).items()})
+
+
+# -- a digital decimation filter at the sub-steps ----------------------------------------------------------------
+DELTA_SIGMA = Acquisition("delta-sigma")
+
+
+def test_the_decimation_filter_passes_the_band_and_removes_what_the_converter_removes():
+    """On a 7x grid (a 300 Hz record's sub-steps): a 90 Hz sine (0.3 fs) passes as it is, a 210 Hz
+    one (0.7 fs, above the stopband; point samples fold it onto 90 Hz) is gone; a declared delay
+    shifts the record."""
+    from wingopt.measurements.decimation_filter import DecimationFilter
+
+    f, S = DecimationFilter.of(DELTA_SIGMA), 7
+    assert DecimationFilter.of(BUTTER) is None and DecimationFilter.of(None) is None
+    t = np.arange(300 * S + 1) / (RATE * S)
+    ts = t[::S]
+
+    def run(freq, filt=f):
+        x = np.sin(2 * np.pi * freq * t)[:, None]
+        return filt(x, np.zeros_like(x), 1 / (RATE * S), S)[:, 0]
+
+    inner = slice(40, -40)
+    assert np.abs(run(90.0)[inner] - np.sin(2 * np.pi * 90.0 * ts)[inner]).max() < 2e-3
+    assert np.abs(run(210.0)[inner]).max() < 2e-3  # point samples of it: amplitude 1 at 90 Hz
+    late = DecimationFilter.of(Acquisition("delta-sigma", delay_s=5 / RATE))
+    assert np.abs(run(30.0, late)[inner] - np.sin(2 * np.pi * 30.0 * (ts - 5 / RATE))[inner]).max() < 2e-3
+
+
+@pytest.mark.parametrize("physics", ["berger", "fvk"])
+def test_the_decimation_filters_jacobian_is_exact(cases, physics):
+    from wingopt.measurements.decimation_filter import DecimationFilter
+
+    rp = dataclasses.replace(cases[f"{physics}_none"], daq=DecimationFilter.of(DELTA_SIGMA))
+    th = _theta(rp)
+    r, _, J, _ = rp.residuals(th, jacobian=True)
+    assert np.array_equal(r, rp.residuals(th)[0])
+    eye = 1e-6 * np.eye(rp.dim)
+    fd = np.stack([(rp.residuals(th + e)[0] - rp.residuals(th - e)[0]) / 2e-6 for e in eye], axis=1)
+    assert np.abs(fd - J).max() < 1e-6 * np.abs(J).max()
+    out = rp.outputs(np.stack([th, -0.5 * th]))
+    assert np.abs(out[:, 0] - rp.predicted(th)[1]).max() < 1e-12 * np.abs(out).max()

@@ -35,9 +35,11 @@ passes a 50 Hz ringing at 300 Hz at 0.91 of its amplitude, 1.9 ms late), and so 
 of the modes above the Nyquist frequency that ring at a release (read off the samples,
 :class:`SampleFilter`, they fold back: L1 from the bubble +19.9 % ± 3.9 N, run causally +0.1 % ±
 0.25 N). A digital decimation filter is flat to its passband edge and its group delay compensated
-by the converter (as its :meth:`Acquisition.response` says): in the time domain it is point
-sampling of what it passes, shifted by a declared ``delay_s`` where the time stamps keep the delay
-(:meth:`Acquisition.sample_filter`).
+by the converter (as its :meth:`Acquisition.response` says), unless ``delay_s`` says the time
+stamps keep it; the time-domain fits run it at the sub-steps too
+(:class:`~wingopt.measurements.decimation_filter.DecimationFilter`, :meth:`Acquisition.grid_filter`):
+it removes the modes above the Nyquist frequency that ring at a release, which point samples fold
+back.
 """
 
 from __future__ import annotations
@@ -231,6 +233,19 @@ class Acquisition:
         peak = np.abs(h).max()
         lag = int(np.flatnonzero(np.abs(h[: _GRID // 2]) > _TAIL * peak)[-1]) + 1
         lead = int(min(_LEAD, np.count_nonzero(np.abs(h[_GRID // 2 :]) > _PRECURSOR * peak)))
+        taps = np.concatenate([h[_GRID - lead :], h[: lag + 1]])
+        return SampleFilter(taps / taps.sum(), lead)
+
+    def grid_filter(self, fs: float, rate: float) -> SampleFilter:
+        """The filter of a record sampled at ``fs`` (Hz) as it acts on a finer grid of ``rate`` (Hz),
+        e.g. an integrator's sub-steps (:mod:`.decimation_filter`): the inverse transform of ``H(f)``
+        over ``|f| < rate / 2``, every tap down to ``_TAIL`` of the largest on both sides (a
+        linear-phase filter's precursor is as long as its tail)."""
+        f = np.fft.fftfreq(_GRID, 1.0 / rate)
+        h = np.real(np.fft.ifft(self.response(f, fs)))
+        big = np.abs(h) > _TAIL * np.abs(h).max()
+        lag = int(np.flatnonzero(big[: _GRID // 2])[-1]) + 1
+        lead = int(_GRID // 2 - np.flatnonzero(big[_GRID // 2 :])[0]) if big[_GRID // 2 :].any() else 0
         taps = np.concatenate([h[_GRID - lead :], h[: lag + 1]])
         return SampleFilter(taps / taps.sum(), lead)
 

@@ -88,7 +88,7 @@ class CausalFilter:
     @classmethod
     def of(cls, acquisition) -> CausalFilter | None:
         """The filter of a declared ``acquisition`` (``None``: none, point sampling or a digital
-        filter, which in the time domain is point sampling of its passband)."""
+        filter: :class:`~wingopt.measurements.decimation_filter.DecimationFilter`)."""
         if acquisition is None or acquisition.kind not in _ANALOG:
             return None
         return cls(*acquisition.state_space())

@@ -26,6 +26,7 @@ from wingopt.estimation.core.load_model import GustAmplitude, LoadShapes
 from wingopt.estimation.declaration import declaration_of
 from wingopt.measurements.acquisition import SampleFilter
 from wingopt.measurements.analog_filter import CausalFilter
+from wingopt.measurements.decimation_filter import DecimationFilter
 from wingopt.membrane.forward import ForceTangent, ModalMembrane
 from wingopt.problem.membrane import IdentificationSettings
 
@@ -110,7 +111,7 @@ class RecordProblem:
     nonlinear: bool = True
     state_modes: int | None = None
     jacobian: str = "tangent"
-    daq: SampleFilter | CausalFilter | None = None
+    daq: SampleFilter | CausalFilter | DecimationFilter | None = None
     """The DAQ's filter: a declared analog one run causally on the outputs' Hermite interpolant at
     the integrator's sub-steps (:class:`~wingopt.measurements.analog_filter.CausalFilter`, the modal
     velocities giving the slopes), or as it acts on the samples
@@ -201,8 +202,9 @@ class RecordProblem:
 
     @property
     def causal(self) -> bool:
-        """Whether the DAQ's filter runs on the outputs' interpolant (:class:`CausalFilter`)."""
-        return isinstance(self.daq, CausalFilter)
+        """Whether the DAQ's filter runs on the outputs at the integrator's sub-steps
+        (:class:`CausalFilter`, :class:`~wingopt.measurements.decimation_filter.DecimationFilter`)."""
+        return isinstance(self.daq, (CausalFilter, DecimationFilter))
 
     def trajectory(self, theta: np.ndarray, every_substep: bool = False):
         """Modal displacements ``(N, B, m)`` for a batch of unknowns ``(B, dim)``; with

@@ -10,8 +10,8 @@ import numpy as np
 from wingopt.estimation.core.record_fit import levenberg_marquardt
 from wingopt.estimation.core.record_problem import RecordProblem
 from wingopt.estimation.declaration import declaration_of
-from wingopt.measurements.acquisition import SampleFilter
 from wingopt.measurements.analog_filter import CausalFilter
+from wingopt.measurements.decimation_filter import DecimationFilter
 from wingopt.membrane import bubble
 from wingopt.membrane.forward import ModalMembrane, modal_model
 
@@ -20,18 +20,17 @@ __all__ = ["initial_state_prior", "modal_model", "record_filter", "scan", "short
 log = logging.getLogger(__name__)
 
 
-def record_filter(problem, dt: float) -> CausalFilter | SampleFilter | None:
+def record_filter(problem, dt: float) -> CausalFilter | DecimationFilter | None:
     """The problem's declared DAQ filter for the record fits' predictions of a record sampled every
     ``dt`` s: an analog one run causally on the outputs at the integrator's sub-steps
     (:class:`~wingopt.measurements.analog_filter.CausalFilter`: a release rings in modes above the
     Nyquist frequency that the filter attenuates; read off the samples, L1 from the bubble through
-    a Butterworth at fs/3 came out +19.9 % ± 3.9 N, run causally +0.1 % ± 0.25 N), a digital one's
-    uncompensated delay on the samples (:meth:`~wingopt.measurements.acquisition.Acquisition.
-    sample_filter`); ``None``: none declared, or one the samples need not model."""
+    a Butterworth at fs/3 came out +19.9 % ± 3.9 N, run causally +0.1 % ± 0.25 N), a digital one
+    at the sub-steps too (:class:`~wingopt.measurements.decimation_filter.DecimationFilter`: it
+    removes those modes; its delay where the time stamps keep it); ``None``: none declared, or point
+    sampling."""
     acquisition = problem.acquisition
-    if acquisition is None:
-        return None
-    return CausalFilter.of(acquisition) or acquisition.sample_filter(1.0 / dt)
+    return CausalFilter.of(acquisition) or DecimationFilter.of(acquisition)
 
 
 def initial_state_prior(

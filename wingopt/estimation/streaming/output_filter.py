@@ -28,10 +28,11 @@ derivative's), exact, as ``G`` does; the measurement Jacobian is ``C dW + D H G`
 predicted output (a wing at rest or in equilibrium: the DAQ ran before the record).
 
 A digital decimation filter (``fir``, ``delta-sigma``) is flat and delay-compensated in its
-passband: in the time domain it is point sampling, and the stream predicts point samples, as for
-``point`` (:func:`output_filter` returns ``None``; the stream is then what it was without a
-declaration). A declared delay the time stamps keep (``delay_s``) is modelled by the start-up's
-batch fit, not by the filter's one-sample steps: the stream says so.
+passband: the one-sample filter predicts point samples, as for ``point`` (:func:`output_filter`
+returns ``None``), while the start-up's batch fit runs the filter at the sub-steps
+(:class:`~wingopt.measurements.decimation_filter.DecimationFilter`: it removes the modes above the
+Nyquist frequency that ring at a release). A declared delay the time stamps keep (``delay_s``) is
+modelled by the start-up's batch fit, not by the filter's one-sample steps: the stream says so.
 """
 
 from __future__ import annotations
