@@ -28,6 +28,7 @@ The true load is used only to score the answer afterwards, never by an estimator
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import tempfile
@@ -42,6 +43,7 @@ import wingopt as wo
 import wingopt.membrane as wm
 from wingopt.errors import InputError, SolverError
 from wingopt.measurements import Measurements
+from wingopt.measurements.acquisition import Acquisition
 from wingopt.membrane.dic_synth import synthesize_frames
 
 ROUTES = ("batch", "stream", "calibrate", "dic")
@@ -195,6 +197,17 @@ def _measurements(case, rec, oversample, names) -> Measurements:
     return Measurements(t, y, names, None, f"fuzz #{case['index']}")
 
 
+def declared_acquisition(case: dict) -> Acquisition | None:
+    """The DAQ of ``case`` as its lab declares it (``--declare``): the analog Butterworth, or the
+    converter's FIR with its group delay (65 taps at 4x the rate: 8 samples), which the stamps keep."""
+    rate = case["rate_hz"]
+    if case["daq"] == "butter-fs/3":
+        return Acquisition("butterworth", order=4, cutoff_hz=rate / 3)
+    if case["daq"] == "fir-0.45":
+        return Acquisition("delta-sigma", delay_s=8.0 / rate)
+    return None
+
+
 def run_case(case: dict) -> dict:
     problem = wo.load_problem("membrane")
     if case["route"] != "calibrate":
@@ -211,6 +224,8 @@ def run_case(case: dict) -> dict:
         # sign; the shipped protocols state it the same way, :func:`wingopt.workflows.studies.protocol_sign`)
         ident = problem.identification
         problem = problem.with_identification(initial_load=truth["side"] * abs(ident.initial_load))
+        if case.get("declared_daq"):
+            problem = dataclasses.replace(problem, acquisition=declared_acquisition(case))
         meas = _measurements(case, rec, truth["oversample"], problem.sensor_names)
         out.update(_estimate(case, problem, meas, rec, fwd, truth))
         out["outcome"] = "answer"
@@ -318,6 +333,7 @@ def main(argv=None) -> int:
     ap.add_argument("--route", choices=ROUTES, help="only this route")
     ap.add_argument("--out", default="fuzz.jsonl")
     ap.add_argument("--table", metavar="JSONL", help="print the table of a finished run and stop")
+    ap.add_argument("--declare", action="store_true", help="declare each record's DAQ as its lab knows it")
     args = ap.parse_args(argv)
     if args.table:
         print(table([json.loads(line) for line in Path(args.table).read_text().splitlines() if line.strip()]))
@@ -331,6 +347,7 @@ def main(argv=None) -> int:
         if i in done or (args.route and case["route"] != args.route):
             continue
         case["t_end"] = min(case["t_end"], args.max_length)
+        case["declared_daq"] = args.declare
         r = run_case(case)
         with out.open("a") as f:
             f.write(json.dumps(r, default=float) + "\n")
