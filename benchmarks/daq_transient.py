@@ -1,4 +1,4 @@
-"""Transient records through an analog anti-aliasing filter: point-sampled, filter undeclared, declared.
+"""Transient records through a DAQ's anti-aliasing filter: point-sampled, filter undeclared, declared.
 
 L1 on FvK truth (``benchmarks/fuzz_records.py``'s generator: 37x19 full order, prestrains x1.1 and
 x0.9 of the file's, 1 % noise, 1 s at 300 Hz), handed over by a 4th-order Butterworth at fs/3 (the
@@ -6,7 +6,7 @@ filter run at 4x the record's rate and settled on the wing's first state), relea
 (declared) or loaded from rest. One row per record and acquisition (docs/lab_records.md), with the
 chi-square per datum of the fit's first ``--head`` samples (the release)::
 
-    python benchmarks/daq_transient.py [--cases 2] [--warnings] [--only declared]
+    python benchmarks/daq_transient.py [--cases 2] [--warnings] [--only declared] [--daq delta-sigma]
 
 The declared rows' fits run the analog filter causally on the outputs' interpolant at the
 integrator's sub-steps (:class:`~wingopt.measurements.analog_filter.CausalFilter`, what
@@ -59,6 +59,29 @@ def _analog_measurements(c, rec, oversample, names, acquisition):
     return Measurements(t[::oversample], out[::oversample], names, None, "analog truth")
 
 
+DAQS = {"butterworth": "butter-fs/3", "delta-sigma": "fir-0.45", "delta-sigma-late": "fir-0.45"}
+"""``--daq``: a 4th-order Butterworth at fs/3; the fuzz's 65-tap converter FIR at 0.45 fs with its
+group delay (8 samples) compensated, as most drivers do; the same with the delay kept in the stamps
+(declared as ``delay_s``)."""
+
+
+def _declared(daq: str, rate: float) -> Acquisition:
+    if daq == "butterworth":
+        return Acquisition("butterworth", order=4, cutoff_hz=rate / 3)
+    return Acquisition("delta-sigma", delay_s=8.0 / rate if daq == "delta-sigma-late" else None)
+
+
+def _compensated_measurements(rec, oversample, names) -> Measurements:
+    """The truth through the fuzz's converter FIR with its group delay taken out (``--daq delta-sigma``)."""
+    t, y = rec.measurements.t, rec.measurements.values
+    fs = 1.0 / (t[1] - t[0])  # the oversampled rate, as fuzz_records._acquire
+    taps = signal.firwin(16 * oversample + 1, 0.45 * fs / oversample, fs=fs)
+    lag = 8 * oversample
+    padded = np.vstack([y, np.repeat(y[-1:], lag, axis=0)])
+    out = signal.lfilter(taps, 1.0, padded, axis=0, zi=signal.lfilter_zi(taps, 1.0)[:, None] * y[0])[0][lag:]
+    return Measurements(t[::oversample], out[::oversample], names, None, "delay-compensated converter")
+
+
 CASES = [("L1", "bubble", 300, 1), ("L1", "rest", 300, 2), ("L3", "bubble", 500, 3), ("LE", "rest", 300, 4)]
 
 
@@ -88,6 +111,7 @@ def main(argv=None) -> int:
     ap.add_argument("--only", choices=("point-sampled", "undeclared", "declared"), help="one acquisition's rows")
     ap.add_argument("--analog-truth", action="store_true", help="the truth through the analog filter (lsim)")
     ap.add_argument("--head", type=int, default=10, help="samples of the release whose chi-square is printed")
+    ap.add_argument("--daq", choices=tuple(DAQS), default="butterworth", help="the DAQ that hands the record over")
     args = ap.parse_args(argv)
     estimator.fit_result = _record_result(estimator.fit_result)
     for load, start, rate, seed in CASES[: args.cases]:
@@ -98,9 +122,11 @@ def main(argv=None) -> int:
         for acquisition in ("point-sampled", "undeclared", "declared"):
             if args.only not in (None, acquisition):
                 continue
-            c["daq"] = "point" if acquisition == "point-sampled" else "butter-fs/3"
-            declared = Acquisition("butterworth", order=4, cutoff_hz=rate / 3)
-            if args.analog_truth and acquisition != "point-sampled":
+            c["daq"] = "point" if acquisition == "point-sampled" else DAQS[args.daq]
+            declared = _declared(args.daq, rate)
+            if args.daq == "delta-sigma" and acquisition != "point-sampled":
+                meas = _compensated_measurements(rec, truth["oversample"], problem.sensor_names)
+            elif args.analog_truth and acquisition != "point-sampled":
                 meas = _analog_measurements(c, rec, truth["oversample"], problem.sensor_names, declared)
             else:
                 meas = fz._measurements(c, rec, truth["oversample"], problem.sensor_names)
