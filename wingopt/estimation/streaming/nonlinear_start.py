@@ -98,17 +98,7 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
     est.x = x
     est.G = np.vstack([dQ.T / D[:m, None], dV.T / D[m:, None]])
     est.Sigma = Sigma
-    # the window's misfit: the fit's residuals of the last samples
-    R = np.zeros(Y.shape)
-    R[rp.valid] = fit.residuals
-    W = est._nis.size
-    tail = slice(max(Y.shape[0] - W, 0), Y.shape[0])
-    r2 = (R[tail] ** 2).sum(axis=1)
-    est._nis[:] = 0.0
-    est._nd[:] = 0
-    est._nis[: r2.size] = r2
-    est._nd[: r2.size] = rp.valid[tail].sum(axis=1)
-    est._ring = r2.size - 1
+    _window_misfit(est, rp, fit.residuals)
     return {
         **({"lead_note": lead_note(lead, t + est.dt * lead)} if lead else {}),
         "startup_iterations": fit.iterations,
@@ -116,3 +106,17 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
         "startup_converged": fit.converged,
         "startup_chi2_per_datum": fit.data_cost / max(rp.n_data, 1),
     }
+
+
+def _window_misfit(est, rp: RecordProblem, residuals: np.ndarray) -> None:
+    """The filter's misfit window filled with the fit's residuals of its last samples."""
+    R = np.zeros(rp.y.shape)
+    R[rp.valid] = residuals
+    n = rp.y.shape[0]
+    tail = slice(max(n - est._nis.size, 0), n)
+    r2 = (R[tail] ** 2).sum(axis=1)
+    est._nis[:] = 0.0
+    est._nd[:] = 0
+    est._nis[: r2.size] = r2
+    est._nd[: r2.size] = rp.valid[tail].sum(axis=1)
+    est._ring = r2.size - 1
