@@ -254,7 +254,7 @@ def _calibration_problem(
     prior = ParameterPrior.from_problem(problem, PARAMETERS, s.prestrain_rel, s.damping_rel, declaration=declared)
     x_mean, x_std, known = initial_state_prior(bm, problem, meas.values, declared.initial_deflection)
     shapes, ms = LoadShapes.none(model), min(s.state_modes if modes is None else modes, bm.m)
-    daq = record_filter(problem, dt)
+    daq = record_filter(problem)
     rp = RecordProblem(bm, shapes, meas.t, meas.values, sigma, prior, x_mean, x_std, state_modes=ms, daq=daq)
     return rp, known
 

@@ -20,15 +20,14 @@ __all__ = ["initial_state_prior", "modal_model", "record_filter", "scan", "short
 log = logging.getLogger(__name__)
 
 
-def record_filter(problem, dt: float) -> CausalFilter | DecimationFilter | None:
-    """The problem's declared DAQ filter for the record fits' predictions of a record sampled every
-    ``dt`` s: an analog one run causally on the outputs at the integrator's sub-steps
-    (:class:`~wingopt.measurements.analog_filter.CausalFilter`: a release rings in modes above the
-    Nyquist frequency that the filter attenuates; read off the samples, L1 from the bubble through
-    a Butterworth at fs/3 came out +19.9 % ± 3.9 N, run causally +0.1 % ± 0.25 N), a digital one
-    at the sub-steps too (:class:`~wingopt.measurements.decimation_filter.DecimationFilter`: it
-    removes those modes; its delay where the time stamps keep it); ``None``: none declared, or point
-    sampling."""
+def record_filter(problem) -> CausalFilter | DecimationFilter | None:
+    """The problem's declared DAQ filter for the record fits' predictions, run on the outputs at the
+    integrator's sub-steps: an analog one causally (:class:`~wingopt.measurements.analog_filter.
+    CausalFilter`: a release rings in modes above the Nyquist frequency that the filter attenuates;
+    read off the samples, L1 from the bubble through a Butterworth at fs/3 came out +19.9 % ± 3.9 N,
+    run causally +0.1 % ± 0.25 N), a digital one as its response on that grid
+    (:class:`~wingopt.measurements.decimation_filter.DecimationFilter`: it removes those modes; its
+    delay where the time stamps keep it); ``None``: none declared, or point sampling."""
     acquisition = problem.acquisition
     return CausalFilter.of(acquisition) or DecimationFilter.of(acquisition)
 

@@ -49,7 +49,7 @@ def batch_start(est, Y: np.ndarray, sigma: np.ndarray, max_iter: int = 20) -> di
     D = est._D
     x_mean = np.concatenate([D[:m] * x_prior[:m], np.zeros(m)])
     t = est.dt * np.arange(Y.shape[0])
-    daq = record_filter(est.model.problem, est.dt)  # the declared analog filter, as the batch fit
+    daq = record_filter(est.model.problem)  # the declared analog filter, as the batch fit
     rp = RecordProblem(bm, est.shapes, t, Y, sigma, est.prior, x_mean, D.copy(), None, True, ms, daq=daq)
     sl = rp.slices
     theta0 = np.zeros(rp.dim)

@@ -75,7 +75,7 @@ class RecordRun:
         self.bm = modal_model(
             model, s.membrane_model, min(s.modes, model.n), dt, substeps, s.stretch_gain, s.cubic_modes
         )
-        self.daq = record_filter(model.problem, dt)
+        self.daq = record_filter(model.problem)
         self.shapes, self.weigh_frame = _load_prior(model, self.p0, s)
         self.prior = ParameterPrior.from_problem(model.problem, s.free, s.prestrain_rel, s.damping_rel, ident)
         self._initial_state(ident.initial_deflection)
