@@ -13,6 +13,7 @@ import scipy.signal as sig
 
 from wingopt.estimation.core.noise import estimate_noise_std
 from wingopt.measurements.acquisition import Acquisition
+from wingopt.measurements.decimation_filter import DecimationFilter
 
 FS, OVER = 300.0, 16
 
@@ -73,14 +74,17 @@ def test_a_declared_delay_shifts_the_time_domain_prediction():
     def signal(t):  # smooth, at rest before t = 0
         return np.where(t > 0, np.sin(2 * np.pi * f0 * t) * (1 - np.exp(-np.maximum(t, 0) / 0.05)) ** 2, 0.0)
 
-    y = acq.sample_filter(fs)(signal(t))
+    # the fits' filter (:class:`DecimationFilter`), here on the samples' own grid (one sub-step)
+    x = signal(t)[:, None]
+    y = DecimationFilter.of(acq)(x, x, 1 / fs, 1)[:, 0]
     err = np.abs(y - signal(t - delay))
     assert err[:-40].max() < 5e-3 * np.abs(y).max()  # the start too: held at rest before the record
-    # the spectra see none of it; without the delay a digital filter is point sampling to a time-domain fit
+    # the spectra see none of it; without it the filter leaves the record's timing as it is
     f = np.linspace(-150, 150, 301)
     np.testing.assert_allclose(acq.power(f, fs), Acquisition("delta-sigma").power(f, fs), rtol=0, atol=1e-15)
-    assert Acquisition("delta-sigma").sample_filter(fs) is None
-    assert Acquisition("delta-sigma", delay_s=0).sample_filter(fs) is None
+    for plain in (Acquisition("delta-sigma"), Acquisition("delta-sigma", delay_s=0)):
+        z = DecimationFilter.of(plain)(x, x, 1 / fs, 1)[:, 0]
+        assert np.abs(z - signal(t))[:-40].max() < 5e-3 * np.abs(z).max()
     assert "8.4 ms delay not compensated" in Acquisition("fir", delay_s=8.4e-3).describe()
     assert Acquisition.from_value({"kind": "delta-sigma", "delay_s": delay}) == acq
     assert acq.as_dict()["delay_s"] == delay

@@ -223,10 +223,12 @@ class Acquisition:
         return wc * A, wc * B[:, 0], C[0], float(D[0, 0])
 
     def sample_filter(self, fs: float) -> SampleFilter | None:
-        """What the filter does to a record sampled at ``fs`` (Hz), for a time-domain fit
-        (:class:`SampleFilter`); ``None`` for point sampling and for a digital filter whose delay the
-        time stamps take out (module docstring): a digital filter with a ``delay_s`` is that delay."""
-        if self.point or (self.digital and not self.delay_s):
+        """What an analog filter does to a record sampled at ``fs`` (Hz), read off the samples
+        (:class:`SampleFilter`); ``None`` for point sampling and a digital filter. The time-domain
+        fits run the filters at the integrator's sub-steps instead (:meth:`grid_filter`,
+        :mod:`.analog_filter`): read off the samples, the modes above the Nyquist frequency that
+        ring at a release fold back (kept as that reference, ``tests/test_transient_daq_causal.py``)."""
+        if self.point or self.digital:
             return None
         f = np.fft.fftfreq(_GRID, 1.0 / fs)
         h = np.real(np.fft.ifft(self.response(f, fs)))
