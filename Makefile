@@ -8,6 +8,9 @@ STAMP  := $(VENV)/.installed-stamp
 # Single-threaded BLAS: the matrices here are small to medium, and on a shared 2-core machine
 # threaded BLAS was measured up to 10x slower (oversubscription). Override on the command line.
 BLAS_THREADS ?= 1
+# The suite runs one test file per worker (module fixtures are built once); at most 4 workers,
+# as each holds its own models and solvers in memory. TEST_WORKERS=0 runs it in one process.
+TEST_WORKERS ?= $(shell $(PYTHON) -c "import os; print(min(4, len(os.sched_getaffinity(0))))" 2>/dev/null || echo 2)
 RUN    := OPENBLAS_NUM_THREADS=$(BLAS_THREADS) OMP_NUM_THREADS=$(BLAS_THREADS) MKL_NUM_THREADS=$(BLAS_THREADS)
 
 .PHONY: demo test test-slow lint format bench clean install
@@ -24,7 +27,7 @@ demo: $(STAMP)
 	$(RUN) $(BIN)/wingopt demo
 
 test: $(STAMP)
-	$(RUN) $(BIN)/python -m pytest
+	$(RUN) $(BIN)/python -m pytest -n $(TEST_WORKERS) --dist loadfile
 
 test-slow: $(STAMP)
 	$(RUN) $(BIN)/python -m pytest -m slow
