@@ -168,6 +168,18 @@ def test_a_worker_death_costs_no_retries(tmp_path):
     assert all(r["status"] == "ok" and r["square"] == r["i"] ** 2 for r in records.values()), records
 
 
+def test_two_local_clusters_run_side_by_side_without_a_port_clash(cluster):
+    """The scheduler serves HTTP routes even without a dashboard, by default on port 8787: a second
+    cluster beside the first (two sweeps, two test workers) took another port with a UserWarning."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        with Engine(EngineSettings(mode="local", workers=1, progress=False, dashboard=False)) as eng:
+            assert eng.dashboard_link is None and eng.n_workers == 1
+            assert eng.client.submit(pow, 3, 2).result() == 9
+
+
 def _count(counter: str, i: int, run: int = 1) -> dict:
     """A task that appends ``run:index`` to ``counter`` each time it runs."""
     with open(counter, "a") as fh:

@@ -195,7 +195,10 @@ class Engine:
                     n_workers=s.workers or os.cpu_count() or 1,
                     threads_per_worker=1,
                     processes=True,
-                    dashboard_address=":0" if s.dashboard else None,
+                    # the scheduler serves its HTTP routes even without a dashboard, on 8787 unless
+                    # told otherwise: a free port lets two sweeps (or test workers) run side by side
+                    dashboard_address=":0",
+                    scheduler_kwargs={"dashboard": s.dashboard},
                     env=dict(BLAS_ENV),
                     silence_logs=logging.ERROR,
                 )
@@ -222,8 +225,8 @@ class Engine:
 
     @property
     def dashboard_link(self) -> str | None:
-        """The dashboard's address (``None`` in serial mode or without bokeh installed)."""
-        if self.client is None:
+        """The dashboard's address (``None`` in serial mode, when not asked for, or without bokeh installed)."""
+        if self.client is None or not self.settings.dashboard:
             return None
         try:
             import bokeh  # noqa: F401 - the dashboard needs it
