@@ -19,6 +19,7 @@ from wingopt.estimation.runners import settings_for
 from wingopt.estimation.streaming.nonlinear import NonlinearStreamingEstimator
 from wingopt.estimation.streaming.output_filter import (
     AnalogFilter,
+    DelayLine,
     FilterStates,
     SensorInput,
     output_filter,
@@ -72,9 +73,50 @@ def test_only_an_analog_filter_gets_states():
     assert output_filter(Acquisition("delta-sigma"), 1 / RATE)[0] is None
     states, said, warning = output_filter(BUTTER, 1 / RATE)
     assert states is not None and "butterworth" in said and warning is None
-    # a delay the time stamps keep: the start-up fit models it, the one-sample filter does not, and says so
+    # a delay the time stamps keep: a delay line of 6 samples at 300 Hz
     states, said, warning = output_filter(Acquisition("delta-sigma", delay_s=0.02), 1 / RATE)
-    assert states is None and "20 ms delay not compensated" in said and "its one-sample filter does not" in warning
+    assert isinstance(states, DelayLine) and states.size == 8 and "20 ms delay not compensated" in said
+    assert "delayed" in said and warning is None
+
+
+def _delayed_run(delay: float, f_hz: float, n: int, dtheta: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """A cosine of ``f_hz`` at ``RATE`` through a delay line of ``delay`` samples, settled on its first
+    value, with one unknown (the cosine's amplitude: ``Jh = h``); and the cosine at ``t - delay dt``
+    (the first value before the record). ``dtheta``: an update of the amplitude after the last step."""
+    dt, w = 1.0 / RATE, 2 * np.pi * f_hz
+    line = DelayLine(delay, dt)
+
+    def at(k):
+        h, hd = np.array([np.cos(w * k * dt)]), np.array([-w * np.sin(w * k * dt)])
+        return SensorInput(h, hd, h[:, None], hd[:, None])
+
+    line.settle(at(0))
+    out = [line.output(at(0).h, at(0).Jh)[0][0]]
+    for k in range(1, n):
+        line.step(at(k - 1), at(k))
+        out.append(line.output(at(k).h, at(k).Jh)[0][0])
+    if dtheta:
+        line.correct(np.array([dtheta]))
+        out[-1] = line.output(at(n - 1).h, at(n - 1).Jh)[0][0]
+    t = (np.arange(n) - delay) * dt
+    return np.array(out), np.where(t < 0, 1.0, np.cos(w * t))
+
+
+@pytest.mark.parametrize("delay", [0.0, 3.0, 8.0, 8.4, 2.75])
+def test_the_delay_line_hands_over_the_signal_delay_samples_late(delay):
+    y, ref = _delayed_run(delay, 50.0, 120)
+    # a whole number of samples: exactly the sample that many back; between samples the Hermite
+    # interpolant of a 50 Hz cosine at 300 Hz (measured 0.25 % of its amplitude at 0.4 sample; a linear one: 11 %)
+    tol = 1e-12 if delay == int(delay) else 4e-3
+    np.testing.assert_allclose(y[10:], ref[10:], atol=tol)
+    assert np.all(y[: int(delay) + 1] == 1.0)  # before the record: the wing as it was at its start
+
+
+def test_an_update_moves_the_delayed_record_by_its_sensitivity():
+    # the amplitude raised by 5 % after the last sample: the delayed record follows, linearly
+    y, ref = _delayed_run(8.4, 50.0, 60, dtheta=0.05)
+    y0, _ = _delayed_run(8.4, 50.0, 60)
+    assert y[-1] == pytest.approx(1.05 * y0[-1], rel=1e-12)
 
 
 @functools.cache
@@ -133,3 +175,39 @@ def test_a_declared_butterworth_is_explained_by_the_stream():
     print(f"start-up chi2/datum {start0:.2f} -> {start1:.2f}, tracking {chi0:.2f} -> {chi1:.2f}")
     assert start1 < 0.5 * start0
     assert chi1 < chi0 and chi1 < 1.5
+
+
+@pytest.mark.parametrize("kind", ["delay", "butterworth"])
+def test_a_held_stream_keeps_the_daq_filter_states_of_its_last_healthy_state(kind):
+    """A failure while tracking restores the last healthy state (:mod:`~wingopt.estimation.streaming.
+    recovery`); the DAQ filter's states belong to it: a restore that left them diverged would hand the
+    next prediction a filter that ran on the diverged signals."""
+    from types import SimpleNamespace
+
+    from wingopt.estimation.streaming.recovery import Recovery
+
+    def u(v):
+        h = np.array([v])
+        return SensorInput(h, 0 * h, h[:, None], 0 * h[:, None])
+
+    dt = 1 / RATE
+    daq = DelayLine(2.5, dt) if kind == "delay" else FilterStates(AnalogFilter.discretise(*BUTTER.state_space(), dt))
+    est = SimpleNamespace(phase="tracking", count=3, x=np.zeros(1), G=np.ones((1, 1)), Sigma=np.eye(1), daq=daq)
+    est.settings = SimpleNamespace(min_samples=100)  # too few samples for a reset: the restore holds
+    daq.settle(u(1.0))
+    signal = iter([2.0, 3.0, 1e30])
+
+    def predict():
+        v = next(signal)
+        est.daq.step(u(v / 2), u(v))
+        est.x = np.array([np.nan if v > 1e20 else v])
+
+    est._predict, est._update = predict, lambda y: None
+    rec = Recovery(5)
+    for _ in range(2):
+        rec.step(est, np.zeros(1))
+    healthy_out = est.daq.output(np.zeros(1), np.zeros((1, 1)))
+    rec.step(est, np.zeros(1))  # the diverged step: restored and held
+    assert rec.hold and est.x[0] == 3.0 and rec.events[-1]["phase"] == "tracking"
+    for got, kept in zip(est.daq.output(np.zeros(1), np.zeros((1, 1))), healthy_out):
+        np.testing.assert_array_equal(got, kept)

@@ -31,8 +31,11 @@ A digital decimation filter (``fir``, ``delta-sigma``) is flat and delay-compens
 passband: the one-sample filter predicts point samples, as for ``point`` (:func:`output_filter`
 returns ``None``), while the start-up's batch fit runs the filter at the sub-steps
 (:class:`~wingopt.measurements.decimation_filter.DecimationFilter`: it removes the modes above the
-Nyquist frequency that ring at a release). A declared delay the time stamps keep (``delay_s``) is
-modelled by the start-up's batch fit, not by the filter's one-sample steps: the stream says so.
+Nyquist frequency that ring at a release). A declared delay the time stamps keep (``delay_s``:
+a converter's group delay, 8 samples for the fuzz's 65-tap FIR) is a delay line (:class:`DelayLine`):
+the record at ``t_k`` is the sensors' signal at ``t_k - delay_s``, the cubic Hermite interpolant of
+the buffered signals and rates of the two samples around it, their sensitivities buffered with
+them and moved by each update as the filter's states are.
 """
 
 from __future__ import annotations
@@ -43,7 +46,7 @@ import numpy as np
 
 from wingopt.measurements.analog_filter import AnalogFilter
 
-__all__ = ["AnalogFilter", "FilterStates", "SensorInput", "output_filter", "sensor_input"]
+__all__ = ["AnalogFilter", "DelayLine", "FilterStates", "SensorInput", "output_filter", "sensor_input"]
 
 _MODELLED = ("butterworth", "bessel")
 
@@ -99,6 +102,59 @@ class FilterStates:
         """The measurement update's step ``dtheta`` of the unknowns, carried to the states."""
         self.w += self.dW @ dtheta
 
+    def snapshot(self) -> tuple[np.ndarray, np.ndarray]:
+        """The states as they are (what a stream's recovery holds with the last healthy state)."""
+        return self.w.copy(), self.dW.copy()
+
+    def restore(self, snapshot: tuple[np.ndarray, np.ndarray]) -> None:
+        self.w, self.dW = (a.copy() for a in snapshot)
+
+
+class DelayLine:
+    """The record ``delay`` samples behind the sensors' signals (a converter's group delay the time
+    stamps keep): the last ``floor(delay) + 2`` samples' inputs (:class:`SensorInput`) buffered, the
+    output the cubic Hermite interpolant at ``t_k - delay dt``. The same steps as
+    :class:`FilterStates` (``settle``, ``step``, ``output``, ``correct``); the buffered
+    sensitivities are to the stream's unknowns as ``G`` is, so an update moves the buffer."""
+
+    def __init__(self, delay: float, dt: float) -> None:
+        whole = int(np.floor(delay + 1e-9))
+        s = 1.0 - (delay - whole)  # the point's place between the older (0) and the newer (1) sample
+        self.size, self.dt = whole + 2, dt
+        # Hermite basis at s: value at the older and the newer sample, and their rates (times dt)
+        self.weights = (2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2)
+        self.inputs: list[SensorInput] = []
+
+    def settle(self, u: SensorInput) -> None:
+        """The buffer of a wing at rest or in equilibrium before the record: ``u``'s signal, no rate."""
+        zero = np.zeros_like(u.hd)
+        self.inputs = [SensorInput(u.h, zero, u.Jh, np.zeros_like(u.Jh))] * (self.size - 1) + [u]
+
+    def step(self, u0: SensorInput, u1: SensorInput) -> None:
+        """One sample on: ``u1`` joins the buffer, the oldest leaves (``u0`` is in it already)."""
+        self.inputs = self.inputs[1:] + [u1]
+
+    def output(self, h: np.ndarray, Jh: np.ndarray, ok: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The record and its sensitivity, of the sensors ``ok`` (``None``: all); ``h``, ``Jh`` (the
+        newest sample's) are not needed: the buffer holds them."""
+        older, newer = self.inputs[0], self.inputs[1]
+        w0, w1, w2, w3 = self.weights
+        sel = slice(None) if ok is None else ok
+        y = w0 * older.h + w1 * self.dt * older.hd + w2 * newer.h + w3 * self.dt * newer.hd
+        J = w0 * older.Jh + w1 * self.dt * older.Jhd + w2 * newer.Jh + w3 * self.dt * newer.Jhd
+        return y[sel], J[sel]
+
+    def correct(self, dtheta: np.ndarray) -> None:
+        """The measurement update's step ``dtheta`` carried to the buffered signals."""
+        self.inputs = [SensorInput(u.h + u.Jh @ dtheta, u.hd + u.Jhd @ dtheta, u.Jh, u.Jhd) for u in self.inputs]
+
+    def snapshot(self) -> list[SensorInput]:
+        """The buffer as it is (its inputs are replaced, never changed in place)."""
+        return list(self.inputs)
+
+    def restore(self, snapshot: list[SensorInput]) -> None:
+        self.inputs = list(snapshot)
+
 
 def output_filter(acquisition, dt: float) -> tuple[FilterStates | None, str, str | None]:
     """What a stream sampled every ``dt`` s models of the declared ``acquisition``: the filter's
@@ -112,11 +168,7 @@ def output_filter(acquisition, dt: float) -> tuple[FilterStates | None, str, str
     if acquisition.point:
         return None, said, None
     if acquisition.digital and acquisition.delay_s:
-        warning = (
-            f"the declared acquisition ({said}): the stream's start-up fit shifts its prediction by the delay, "
-            "its one-sample filter does not (a lag the tracking reads as a misfit)"
-        )
-        return None, f"{said}: point samples of its passband", warning
+        return DelayLine(acquisition.delay_s / dt, dt), f"{said}: point samples of its passband, delayed", None
     if acquisition.digital:  # flat and delay-compensated in its passband: point sampling (module docstring)
         return None, f"{said}: point samples of its passband", None
     warning = (

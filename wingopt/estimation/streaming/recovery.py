@@ -63,7 +63,7 @@ class Recovery:
         self.events: list[dict] = []
         self._since_hold = 0
         self._since_reset: int | None = None  # samples since the last reset (None: none yet)
-        self._good: tuple | None = None  # the last healthy (x, G, Sigma): what a hold keeps
+        self._good: tuple | None = None  # the last healthy (x, G, Sigma, DAQ filter): what a hold keeps
 
     @property
     def ring(self) -> np.ndarray:
@@ -106,7 +106,7 @@ class Recovery:
         if not ok:
             self.fail(est, why)
         elif est.phase == "tracking":
-            self._good = (est.x.copy(), est.G.copy(), est.Sigma.copy())
+            self._keep(est)
 
     def fail(self, est, why: str) -> None:
         """A failure: back to the prior before the start-up, a reset from the batch fit while tracking."""
@@ -146,18 +146,26 @@ class Recovery:
             self._restore(est)
             return
         self.hold = False
-        self._good = (est.x.copy(), est.G.copy(), est.Sigma.copy())
+        self._keep(est)
         self.events[-1]["reset"] = {"samples": int(Y.shape[0]), "chi2_per_datum": out["startup_chi2_per_datum"]}
         est.verdict.fitted(out["startup_chi2_per_datum"], Y.shape[0], "reset")
         log.info("[ekf stream] reset from the batch fit of the last %d samples (%s)", Y.shape[0], why)
 
+    def _keep(self, est) -> None:
+        """The state as the last healthy one, with the DAQ filter's states that belong to it."""
+        self._good = (est.x.copy(), est.G.copy(), est.Sigma.copy(), None if est.daq is None else est.daq.snapshot())
+
     def _restore(self, est) -> None:
         """Back to the last healthy state (held, flagged): a diverged state has no answer to report."""
         if self._good is not None:
-            est.x, est.G, est.Sigma = (a.copy() for a in self._good)
+            est.x, est.G, est.Sigma = (a.copy() for a in self._good[:3])
+            if est.daq is not None:
+                est.daq.restore(self._good[3])
         elif not healthy(est):  # no healthy tracking state yet: the prior
             est.x, est.G = est._prior_state(self.ring)
             est.Sigma = np.eye(est.d)
+            if est.daq is not None:  # the DAQ's filter settled on it, as at the start
+                est.daq.settle(est._input())
 
     def released(self) -> None:
         """The start-up's batch fit replaced the held provisional filter."""
