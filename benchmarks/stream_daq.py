@@ -10,7 +10,9 @@ of the tracking windows') and the samples reached::
 
     python benchmarks/stream_daq.py [--cases 3] [--seconds 1.0] [--daq delta-sigma-late]
 
-``--daq delta-sigma-late``: the fuzz's 65-tap converter FIR at 0.45 fs instead, its group delay
+``--gust``: a gust after the release (``fuzz_records``'s: 30 % for 0.2 s, starting at 0.3-0.6 of the
+record), and each row's lift history against the truth's (RMS over the tracking samples, relative to
+the final lift). ``--daq delta-sigma-late``: the fuzz's 65-tap converter FIR at 0.45 fs instead, its group delay
 (8 samples) kept in the time stamps, declared as ``Acquisition("delta-sigma", delay_s=8 / rate)``.
 """
 
@@ -46,16 +48,26 @@ def case(load: str, start: str, rate: int, seed: int, seconds: float) -> dict:
     return daq_transient.case(load, start, rate, seed) | {"route": "stream", "t_end": seconds}
 
 
-def stream(problem, meas) -> tuple[dict, float]:
-    """The summary of ``follow`` on ``meas`` written as a CSV, and the tracking windows' mean chi-square."""
+def stream(problem, meas) -> tuple[dict, float, np.ndarray]:
+    """The summary of ``follow`` on ``meas`` written as a CSV, the tracking windows' mean chi-square,
+    and the tracking samples' ``(t, lift)`` ``(2, n)``."""
     with tempfile.TemporaryDirectory() as tmp:
         src = Path(tmp) / "rec.csv"
         rows = np.column_stack([meas.t, meas.values])
         np.savetxt(src, rows, delimiter=",", header="t," + ",".join(meas.sensor_names), comments="")
         s = follow(problem, Path(tmp) / "out", source=str(src), idle_timeout=0.2)
         with open(Path(tmp) / "out" / "lift.csv", newline="") as fh:
-            chi = [float(r["chi2_per_datum"]) for r in csv.DictReader(fh) if r.get("phase") == "tracking"]
-    return s, float(np.mean(chi)) if chi else float("nan")
+            tracking = [r for r in csv.DictReader(fh) if r.get("phase") == "tracking" and r["lift_N"]]
+    chi = [float(r["chi2_per_datum"]) for r in tracking]
+    history = np.array([[float(r["t"]), float(r["lift_N"])] for r in tracking]).reshape(-1, 2).T
+    return s, float(np.mean(chi)) if chi else float("nan"), history
+
+
+def history_rms(history: np.ndarray, rec) -> float:
+    """RMS of the tracking samples' lift against the truth's lift history, relative to its final value."""
+    t, lift = history
+    truth = np.interp(t, rec.measurements.t, rec.lift_history)
+    return float(np.sqrt(np.mean((lift - truth) ** 2)) / abs(rec.lift_history[-1])) if t.size else float("nan")
 
 
 def row(label: str, s: dict, mean_chi2: float, truth: float, count: int, cpu: float) -> str:
@@ -79,10 +91,11 @@ def main(argv=None) -> int:
     ap.add_argument("--seconds", type=float, default=1.0, help="each record's length (s)")
     ap.add_argument("--warnings", action="store_true", help="print each run's warnings")
     ap.add_argument("--daq", choices=("butterworth", "delta-sigma-late"), default="butterworth", help="the DAQ")
+    ap.add_argument("--gust", action="store_true", help="a gust after the release (as the fuzz's); use --seconds 1.5")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.ERROR)
     for load, start, rate, seed in CASES[: args.cases]:
-        c = case(load, start, rate, seed, args.seconds)
+        c = case(load, start, rate, seed, args.seconds) | {"gust": args.gust}
         problem = wo.load_problem("membrane").with_identification(initial_deflection=0.01 if start == "bubble" else 0.0)
         rec, _, truth = fz.simulate(c, problem)
         problem = problem.with_identification(initial_load=truth["side"] * abs(problem.identification.initial_load))
@@ -97,9 +110,10 @@ def main(argv=None) -> int:
             meas = fz._measurements(c, rec, truth["oversample"], problem.sensor_names)
             p = dataclasses.replace(problem, acquisition=declared) if acquisition == "declared" else problem
             t0 = time.process_time()
-            s, mean_chi2 = stream(p, meas)
+            s, mean_chi2, history = stream(p, meas)
             label = f"{load} from {start}, {rate} Hz, {acquisition}"
-            print(row(label, s, mean_chi2, truth["lift"], meas.count, time.process_time() - t0), flush=True)
+            line = row(label, s, mean_chi2, truth["lift"], meas.count, time.process_time() - t0)
+            print(line + f"; lift history RMS {100 * history_rms(history, rec):.0f} %" * args.gust, flush=True)
             for w in s.get("warnings", []) if args.warnings else ():
                 print("    ", w)
     return 0
