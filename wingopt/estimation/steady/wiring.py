@@ -24,9 +24,10 @@ transient record's late mean, the static state it settles to (:func:`check_trans
 change an answer: :func:`attach` adds ``info["wiring"]`` and a warning naming the sensors and the
 likely mistake.
 
-A load the thin-airfoil shapes cannot make (an off-centre bump, zero net lift) misfits every
-hypothesis alike and gives no finding; a mistake on a sensor the others cannot predict (two sensors
-placed symmetrically and swapped) is not seen.
+The checks rest on the load being a thin-airfoil one: four means cannot tell a wiring mistake from
+a load those shapes cannot make, and every finding says so (:data:`OR_THE_LOAD`; what they tell
+on loads outside those shapes: ``docs/tunnel.md``, ``benchmarks/wiring_reach.py``). A mistake on
+a sensor the others cannot predict (two sensors placed symmetrically and swapped) is not seen.
 """
 
 from __future__ import annotations
@@ -34,7 +35,6 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import logging
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -44,6 +44,7 @@ from wingopt.estimation.core.record_fit import levenberg_marquardt
 from wingopt.estimation.core.record_problem import ParameterPrior
 from wingopt.estimation.declaration import with_declaration
 from wingopt.estimation.steady.problem import SteadyData, SteadyProblem, starts, steady_data
+from wingopt.estimation.steady.wiring_report import Finding, WiringReport, skipped
 from wingopt.membrane.model import MembraneModel
 
 __all__ = ["Finding", "WiringReport", "check_steady", "check_transient", "attach", "fluctuation_slopes", "EVIDENCE"]
@@ -69,48 +70,13 @@ TOL = 0.2
 """The hypotheses' fits stop when a step would lower the chi-square by less than this: they are
 compared at :data:`EVIDENCE`, not to the last digit."""
 
+OR_THE_LOAD = (
+    " Or a load the thin-airfoil shapes cannot make: the means cannot tell the two apart (a clean record"
+    " under a leading-edge load or an off-centre bump reads this way; docs/tunnel.md, the wiring checks)."
+)
+"""Said with every finding: what else makes the means inconsistent with the shapes (module docstring)."""
+
 _FAILURES = (InputError, SolverError, ArithmeticError, np.linalg.LinAlgError)
-
-
-@dataclass(frozen=True)
-class Finding:
-    """One likely wiring mistake: ``mistake`` (``"gain"``, ``"offset"``, ``"gain or offset"``,
-    ``"swap"``), the sensors, the mean's ratio to its prediction (one sensor off), the chi-square
-    its correction removes, and the message."""
-
-    mistake: str
-    sensors: tuple[str, ...]
-    ratio: float
-    evidence: float
-    message: str
-
-
-@dataclass(frozen=True)
-class WiringReport:
-    """What the wiring checks found (``findings``: empty when none) and how they were run."""
-
-    findings: tuple[Finding, ...]
-    prior: str
-    baseline_chi2: float
-    checked: bool = True
-    reason: str = ""
-
-    @property
-    def warnings(self) -> list[str]:
-        return [f.message for f in self.findings]
-
-    def as_dict(self) -> dict:
-        return {
-            "checked": self.checked,
-            "prior": self.prior,
-            "baseline_chi2": self.baseline_chi2,
-            "findings": [dataclasses.asdict(f) for f in self.findings],
-            **({"reason": self.reason} if self.reason else {}),
-        }
-
-
-def _skipped(reason: str) -> WiringReport:
-    return WiringReport((), "", float("nan"), checked=False, reason=reason)
 
 
 def _fit(sp_: SteadyProblem, th0: list[np.ndarray], max_iter: int, sign: float | None = None):
@@ -294,7 +260,7 @@ def check_steady(
     the load factor's (buffeting), which tells a gain from an offset."""
     data = steady_data(values)
     if not np.all(np.isfinite(data.mean)) or data.mean.size < 3:
-        return _skipped("fewer than three sensors with a mean")
+        return skipped("fewer than three sensors with a mean")
     sign = float(np.sign(initial_load) or 1.0)
     wired, corrected = [], []
     modal = None
@@ -311,7 +277,7 @@ def check_steady(
         if fit0 is not None:
             wired.append((fit0.cost, fit0.data_cost / data.mean.size, f"aerodynamic {e}", fit0, sp0))
     if not wired:
-        return _skipped("the predictive prior's fits failed")
+        return skipped("the predictive prior's fits failed")
     cost0, chi2, label0 = min(wired, key=lambda w: w[0])[:3]
     report = WiringReport((), label0, float(chi2))
     if cost0 < EVIDENCE:  # no correction can remove EVIDENCE from a cost below it: the wiring is fine
@@ -352,6 +318,7 @@ def check_steady(
     if others:  # the means alone cannot tell them apart (no fluctuation of the load factor to compare)
         also = "; ".join(sorted(others))
         finding = dataclasses.replace(finding, message=f"{finding.message} (as consistent: {also})")
+    finding = dataclasses.replace(finding, message=finding.message + OR_THE_LOAD)
     return WiringReport((finding,), label, float(chi2))
 
 
@@ -378,7 +345,7 @@ def check_transient(
     y = np.asarray(values, dtype=float)
     tail = y[int((1.0 - late) * y.shape[0]) :]
     if tail.shape[0] < 20:
-        return _skipped("too few late samples")
+        return skipped("too few late samples")
     return check_steady(model, None, tail, prior, initial_load, kappa, edges, fluctuation=False)
 
 
@@ -395,6 +362,6 @@ def attach(info: dict, model: MembraneModel, t, values, settings, initial_load: 
         else:
             rep = check_transient(model, t, values, prior, initial_load, s.kappa, edges)
     except _FAILURES as exc:
-        rep = _skipped(f"the checks failed ({exc})")
+        rep = skipped(f"the checks failed ({exc})")
     info["wiring"] = rep.as_dict()
     info.setdefault("warnings", []).extend(rep.warnings)
