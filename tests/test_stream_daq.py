@@ -119,6 +119,31 @@ def test_an_update_moves_the_delayed_record_by_its_sensitivity():
     assert y[-1] == pytest.approx(1.05 * y0[-1], rel=1e-12)
 
 
+def test_the_delay_line_moves_its_buffer_with_every_update():
+    """Updates between steps move every buffered signal by its sensitivity (the line keeps their sum,
+    not moved copies): against a buffer whose entries are each moved, over 40 random steps."""
+    rng = np.random.default_rng(3)
+    line, naive = DelayLine(5.3, 1 / RATE), []
+
+    def draw():
+        return SensorInput(*(rng.normal(size=s) for s in ((4,), (4,), (4, 6), (4, 6))))
+
+    u = draw()
+    line.settle(u)
+    naive = [SensorInput(u.h, 0 * u.hd, u.Jh, 0 * u.Jhd)] * 6 + [u]
+    for _ in range(40):
+        u1 = draw()
+        line.step(u, u1)
+        naive, u = naive[1:] + [u1], u1
+        dth = rng.normal(size=6)
+        line.correct(dth)
+        naive = [SensorInput(v.h + v.Jh @ dth, v.hd + v.Jhd @ dth, v.Jh, v.Jhd) for v in naive]
+    ref = DelayLine(5.3, 1 / RATE)
+    ref.inputs, ref.moved = naive, np.zeros(6)
+    for got, want in zip(line.output(u.h, u.Jh), ref.output(u.h, u.Jh)):
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+
+
 @functools.cache
 def _record(daq: bool):
     problem = load_problem("membrane")

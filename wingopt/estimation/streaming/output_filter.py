@@ -115,7 +115,11 @@ class DelayLine:
     stamps keep): the last ``floor(delay) + 2`` samples' inputs (:class:`SensorInput`) buffered, the
     output the cubic Hermite interpolant at ``t_k - delay dt``. The same steps as
     :class:`FilterStates` (``settle``, ``step``, ``output``, ``correct``); the buffered
-    sensitivities are to the stream's unknowns as ``G`` is, so an update moves the buffer."""
+    sensitivities are to the stream's unknowns as ``G`` is, so an update moves the buffer.
+
+    An update is linear in the buffered signals: instead of moving every entry, the updates since
+    the buffer settled are summed (``moved``) and each entry is kept less its sensitivity times the
+    sum at its entry, so an update and a step cost the same whatever the delay's length."""
 
     def __init__(self, delay: float, dt: float) -> None:
         whole = int(np.floor(delay + 1e-9))
@@ -124,15 +128,18 @@ class DelayLine:
         # Hermite basis at s: value at the older and the newer sample, and their rates (times dt)
         self.weights = (2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2)
         self.inputs: list[SensorInput] = []
+        self.moved = np.zeros(0)
 
     def settle(self, u: SensorInput) -> None:
         """The buffer of a wing at rest or in equilibrium before the record: ``u``'s signal, no rate."""
         zero = np.zeros_like(u.hd)
         self.inputs = [SensorInput(u.h, zero, u.Jh, np.zeros_like(u.Jh))] * (self.size - 1) + [u]
+        self.moved = np.zeros(u.Jh.shape[1])
 
     def step(self, u0: SensorInput, u1: SensorInput) -> None:
         """One sample on: ``u1`` joins the buffer, the oldest leaves (``u0`` is in it already)."""
-        self.inputs = self.inputs[1:] + [u1]
+        kept = SensorInput(u1.h - u1.Jh @ self.moved, u1.hd - u1.Jhd @ self.moved, u1.Jh, u1.Jhd)
+        self.inputs = self.inputs[1:] + [kept]
 
     def output(self, h: np.ndarray, Jh: np.ndarray, ok: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The record and its sensitivity, of the sensors ``ok`` (``None``: all); ``h``, ``Jh`` (the
@@ -140,20 +147,20 @@ class DelayLine:
         older, newer = self.inputs[0], self.inputs[1]
         w0, w1, w2, w3 = self.weights
         sel = slice(None) if ok is None else ok
-        y = w0 * older.h + w1 * self.dt * older.hd + w2 * newer.h + w3 * self.dt * newer.hd
         J = w0 * older.Jh + w1 * self.dt * older.Jhd + w2 * newer.Jh + w3 * self.dt * newer.Jhd
+        y = w0 * older.h + w1 * self.dt * older.hd + w2 * newer.h + w3 * self.dt * newer.hd + J @ self.moved
         return y[sel], J[sel]
 
     def correct(self, dtheta: np.ndarray) -> None:
         """The measurement update's step ``dtheta`` carried to the buffered signals."""
-        self.inputs = [SensorInput(u.h + u.Jh @ dtheta, u.hd + u.Jhd @ dtheta, u.Jh, u.Jhd) for u in self.inputs]
+        self.moved = self.moved + dtheta
 
-    def snapshot(self) -> list[SensorInput]:
-        """The buffer as it is (its inputs are replaced, never changed in place)."""
-        return list(self.inputs)
+    def snapshot(self) -> tuple[list[SensorInput], np.ndarray]:
+        """The buffer as it is (its entries are replaced, never changed in place)."""
+        return list(self.inputs), self.moved.copy()
 
-    def restore(self, snapshot: list[SensorInput]) -> None:
-        self.inputs = list(snapshot)
+    def restore(self, snapshot: tuple[list[SensorInput], np.ndarray]) -> None:
+        self.inputs, self.moved = list(snapshot[0]), snapshot[1].copy()
 
 
 def output_filter(acquisition, dt: float) -> tuple[FilterStates | None, str, str | None]:
