@@ -24,7 +24,8 @@ summarised in a Gaussian arrival cost (the filter's mean and ``Sigma``). A decla
 anti-aliasing filter (``problem.acquisition``, Butterworth or Bessel) is modelled: its states per
 sensor go along with the state and their sensitivity along with ``G``, the record is the filter's
 output (:mod:`.output_filter`; ``info()["acquisition"]`` says what was modelled); a digital one is
-point samples of its flat passband to the one-sample filter (the start-up fit models it).
+point samples of its flat passband to the one-sample filter (the start-up fit models it), delayed
+by a delay line when the time stamps keep its delay.
 
 Phases (``Estimate.phase``):
 
@@ -159,7 +160,7 @@ class NonlinearStreamingEstimator:
         self.sampler = ModalSample(bm, self._forces, self.lc, self.pc, substeps=ts)
         self._par_ms = np.array([self.prior.mean_std(name) for name in self.prior.free]).reshape(-1, 2)
         self._lift = self.shapes.lift_row * self.shapes.prior_std  # lift per scaled load unknown
-        # the DAQ's analog filter, its states in the filter (:mod:`.output_filter`); None: point samples
+        # the DAQ's analog filter or a kept delay, in the filter (:mod:`.output_filter`); None: point samples
         self.daq, self._acquisition, self._daq_warning = output_filter(model.problem.acquisition, dt)
 
     def _prior_state(self, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -163,9 +163,9 @@ class DelayLine:
         self.inputs, self.moved = list(snapshot[0]), snapshot[1].copy()
 
 
-def output_filter(acquisition, dt: float) -> tuple[FilterStates | None, str, str | None]:
+def output_filter(acquisition, dt: float) -> tuple[FilterStates | DelayLine | None, str, str | None]:
     """What a stream sampled every ``dt`` s models of the declared ``acquisition``: the filter's
-    states (``None``: it predicts point samples), a line saying what it modelled, and a warning
+    states or a delay line (``None``: it predicts point samples), a line saying what it modelled, and a warning
     where a declared filter is one it cannot model."""
     if acquisition is None:
         return None, "point sampling (none declared)", None
