@@ -24,8 +24,7 @@ summarised in a Gaussian arrival cost (the filter's mean and ``Sigma``). A decla
 anti-aliasing filter (``problem.acquisition``, Butterworth or Bessel) is modelled: its states per
 sensor go along with the state and their sensitivity along with ``G``, the record is the filter's
 output (:mod:`.output_filter`; ``info()["acquisition"]`` says what was modelled); a digital one is
-point samples of its flat passband to the one-sample filter (the start-up fit models it), delayed
-by a delay line when the time stamps keep its delay.
+point samples of its flat passband (the start-up fit models it), delayed when the stamps keep a delay.
 
 Phases (``Estimate.phase``):
 
