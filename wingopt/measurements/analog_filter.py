@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
-__all__ = ["AnalogFilter", "CausalFilter", "NODES"]
+__all__ = ["AnalogFilter", "CausalFilter", "NODES", "hermite_basis"]
 
 NODES = 16
 """Gauss–Legendre nodes of the input matrices' quadrature (the integrand is smooth: exact to rounding)."""
@@ -41,7 +41,7 @@ NODES = 16
 _ANALOG = ("butterworth", "bessel")
 
 
-def _hermite(tau: np.ndarray) -> np.ndarray:
+def hermite_basis(tau: np.ndarray) -> np.ndarray:
     """The cubic Hermite basis ``(4, n)`` at ``tau`` in [0, 1]: value and slope at 0, value and slope at 1."""
     t2, t3 = tau**2, tau**3
     return np.array([2 * t3 - 3 * t2 + 1, t3 - 2 * t2 + tau, 3 * t2 - 2 * t3, t3 - t2])
@@ -67,7 +67,7 @@ class AnalogFilter:
         x, wq = np.polynomial.legendre.leggauss(NODES)
         tau, wq = 0.5 * (x + 1.0), 0.5 * wq
         kernel = np.array([sla.expm(A * (dt * (1.0 - s))) @ B for s in tau])  # (NODES, n)
-        Bh = dt * (_hermite(tau) * wq) @ kernel
+        Bh = dt * (hermite_basis(tau) * wq) @ kernel
         Bh[1::2] *= dt  # the slopes enter as dt h'
         return cls(sla.expm(A * dt), Bh, np.asarray(C, float), float(D), -np.linalg.solve(A, B))
 

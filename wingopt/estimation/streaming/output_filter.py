@@ -44,7 +44,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from wingopt.measurements.analog_filter import AnalogFilter
+from wingopt.measurements.analog_filter import AnalogFilter, hermite_basis
 
 __all__ = ["AnalogFilter", "DelayLine", "FilterStates", "SensorInput", "output_filter", "sensor_input"]
 
@@ -126,7 +126,7 @@ class DelayLine:
         s = 1.0 - (delay - whole)  # the point's place between the older (0) and the newer (1) sample
         self.size, self.dt = whole + 2, dt
         # Hermite basis at s: value at the older and the newer sample, and their rates (times dt)
-        self.weights = (2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2)
+        self.weights = tuple(float(w) for w in hermite_basis(np.asarray(s)))
         self.inputs: list[SensorInput] = []
         self.moved = np.zeros(0)
 
