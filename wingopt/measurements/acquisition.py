@@ -230,26 +230,28 @@ class Acquisition:
         ring at a release fold back (kept as that reference, ``tests/test_transient_daq_causal.py``)."""
         if self.point or self.digital:
             return None
-        f = np.fft.fftfreq(_GRID, 1.0 / fs)
-        h = np.real(np.fft.ifft(self.response(f, fs)))
+        h = self._impulse(fs, fs)
         peak = np.abs(h).max()
         lag = int(np.flatnonzero(np.abs(h[: _GRID // 2]) > _TAIL * peak)[-1]) + 1
         lead = int(min(_LEAD, np.count_nonzero(np.abs(h[_GRID // 2 :]) > _PRECURSOR * peak)))
-        taps = np.concatenate([h[_GRID - lead :], h[: lag + 1]])
-        return SampleFilter(taps / taps.sum(), lead)
+        return SampleFilter.of_impulse(h, lead, lag)
 
     def grid_filter(self, fs: float, rate: float) -> SampleFilter:
         """The filter of a record sampled at ``fs`` (Hz) as it acts on a finer grid of ``rate`` (Hz),
         e.g. an integrator's sub-steps (:mod:`.decimation_filter`): the inverse transform of ``H(f)``
         over ``|f| < rate / 2``, every tap down to ``_TAIL`` of the largest on both sides (a
         linear-phase filter's precursor is as long as its tail)."""
-        f = np.fft.fftfreq(_GRID, 1.0 / rate)
-        h = np.real(np.fft.ifft(self.response(f, fs)))
+        h = self._impulse(fs, rate)
         big = np.abs(h) > _TAIL * np.abs(h).max()
         lag = int(np.flatnonzero(big[: _GRID // 2])[-1]) + 1
         lead = int(_GRID // 2 - np.flatnonzero(big[_GRID // 2 :])[0]) if big[_GRID // 2 :].any() else 0
-        taps = np.concatenate([h[_GRID - lead :], h[: lag + 1]])
-        return SampleFilter(taps / taps.sum(), lead)
+        return SampleFilter.of_impulse(h, lead, lag)
+
+    def _impulse(self, fs: float, rate: float) -> np.ndarray:
+        """The filter's impulse response ``(_GRID,)`` on a grid of ``rate`` (Hz), of a record sampled
+        at ``fs``: the inverse transform of ``H(f)`` over ``|f| < rate / 2`` (negative times wrapped)."""
+        f = np.fft.fftfreq(_GRID, 1.0 / rate)
+        return np.real(np.fft.ifft(self.response(f, fs)))
 
     def difference_gain(self, order: int, fs: float) -> float:
         """The variance of the record's noise's ``order``-th differences over its own variance: the
@@ -333,6 +335,13 @@ class SampleFilter:
 
     taps: np.ndarray
     lead: int
+
+    @classmethod
+    def of_impulse(cls, h: np.ndarray, lead: int, lag: int) -> SampleFilter:
+        """The taps of an impulse response ``h`` (negative times wrapped to its end) from ``lead``
+        before to ``lag`` after zero, normalised to a unit DC gain."""
+        taps = np.concatenate([h[h.size - lead :], h[: lag + 1]])
+        return cls(taps / taps.sum(), lead)
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         x = np.asarray(x)
