@@ -312,24 +312,29 @@ class RecordProblem:
         """Predicted records ``(N, B, p)`` of a batch of unknowns ``(B, dim)``, the DAQ's filter
         included (a start-up's ranking of candidates on a filtered record)."""
         th = np.atleast_2d(np.asarray(theta, float))
-        bm = self.model
-        Q, *V = (X.real for X in ((self.trajectory(th, True)) if self.causal else (self.trajectory(th),)))
-        flat = Q.reshape(-1, bm.m)
-        CQ = bm.sensor_products(flat)
-        h = np.einsum("kpi,ki->kp", CQ, flat).reshape(Q.shape[:2] + (bm.p,))
         if self.causal:
-            hd = 2.0 * np.einsum("kpi,ki->kp", CQ, V[0].reshape(-1, bm.m)).reshape(h.shape)
-            return self._filtered(h, hd)
+            return self._causal_record(*(X.real for X in self.trajectory(th, True)))
+        Q = self.trajectory(th).real
+        flat = Q.reshape(-1, self.model.m)
+        h = self.model.outputs(flat).reshape(Q.shape[:2] + (self.model.p,))
         return h if self.daq is None else self.daq(h)
+
+    def _causal_record(self, Q: np.ndarray, V: np.ndarray) -> np.ndarray:
+        """The causal filter's record ``(N, ..., p)`` of modal displacements ``Q`` and velocities ``V``
+        ``(rows, ..., m)`` at the integrator's sub-steps: the outputs ``q^T C q`` and their rates."""
+        bm = self.model
+        flat_q, flat_v = Q.reshape(-1, bm.m), V.reshape(-1, bm.m)
+        CQ = bm.sensor_products(flat_q)
+        shape = Q.shape[:-1] + (bm.p,)
+        h = np.einsum("kpi,ki->kp", CQ, flat_q).reshape(shape)
+        return self._filtered(h, 2.0 * np.einsum("kpi,ki->kp", CQ, flat_v).reshape(shape))
 
     def predicted(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Modal trajectory ``(N, m)`` and predicted outputs ``(N, p)``."""
         th = np.asarray(theta, float)[None]
         if self.causal:
             Q, V = (X[:, 0].real for X in self.trajectory(th, True))
-            CQ = self.model.sensor_products(Q)
-            pred = self._filtered(np.einsum("kpi,ki->kp", CQ, Q), 2.0 * np.einsum("kpi,ki->kp", CQ, V))
-            return Q[:: self.model.substeps], pred
+            return Q[:: self.model.substeps], self._causal_record(Q, V)
         Q = self.trajectory(th)[:, 0].real
         pred = self.model.outputs(Q)
         return Q, pred if self.daq is None else self.daq(pred)

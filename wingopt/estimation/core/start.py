@@ -70,17 +70,9 @@ def scan(rp: RecordProblem, sign_pref: float) -> np.ndarray:
     n = int(np.searchsorted(rp.t, rp.t[0] + SCAN_S, side="right"))
     short = rp if n >= rp.t.size - 1 else dataclasses.replace(rp, t=rp.t[:n], y=rp.y[:n])
     weight = rp.n_data / max(short.n_data, 1)
-    if short.daq is not None:  # the candidates ranked on the record as the DAQ's filter hands it over
-        r = np.where(short.valid[:, None], (short.y[:, None] - short.outputs(th)) / short.sigma, 0.0)
-        costs = weight * np.sum(r**2, axis=(0, 2))
-    else:
-        Q = short.trajectory(th).real
-        costs = []
-        for b in range(amps.size):
-            pred = short.model.outputs(Q[:, b])
-            r = ((short.y - pred) / short.sigma)[short.valid]
-            costs.append(weight * float(r @ r))
-    costs = np.array(costs) + amps**2
+    # the candidates ranked on the record as the DAQ hands it over (its filter, if one is declared)
+    r = np.where(short.valid[:, None], (short.y[:, None] - short.outputs(th)) / short.sigma, 0.0)
+    costs = weight * np.sum(r**2, axis=(0, 2)) + amps**2
     costs[~np.isfinite(costs)] = np.inf  # a start the explicit integrator cannot follow (FvK at 3 prior std)
     best = int(np.argmin(costs))
     log.debug("scan: best amplitude %+.2f prior std (cost %.4g)", amps[best], costs[best])
